@@ -1,0 +1,182 @@
+# anistar — build, test, benchmark, install.
+#
+#   make            build/libanistar.a, build/libanistar.so*, build/anistar, build/examples/*
+#   make check      build and run every test (installs libgmp-dev/libcmocka-dev if missing
+#                   and allowed; otherwise prints the exact command)
+#   make sanitize   the test suite under AddressSanitizer + UndefinedBehaviorSanitizer
+#   make bench      build and run the benchmarks (library built with -DANISTAR_BENCH)
+#   make demo       run the main job on a built-in example and write its output
+#   make install    PREFIX, DESTDIR, LIBDIR, INCLUDEDIR, BINDIR;  make uninstall
+#   make clean
+#
+# Variants live in their own trees: build/ (default), build/asan/ (sanitize),
+# build/bench/ (bench). Every variant is built by this same file with BUILD= set.
+
+VERSION_MAJOR := $(shell sed -n 's/^\#define ANISTAR_VERSION_MAJOR \([0-9]*\)/\1/p' include/anistar.h)
+VERSION_MINOR := $(shell sed -n 's/^\#define ANISTAR_VERSION_MINOR \([0-9]*\)/\1/p' include/anistar.h)
+VERSION_PATCH := $(shell sed -n 's/^\#define ANISTAR_VERSION_PATCH \([0-9]*\)/\1/p' include/anistar.h)
+VERSION := $(VERSION_MAJOR).$(VERSION_MINOR).$(VERSION_PATCH)
+SONAME := libanistar.so.$(VERSION_MAJOR)
+
+PREFIX ?= /usr/local
+DESTDIR ?=
+LIBDIR ?= $(PREFIX)/lib
+INCLUDEDIR ?= $(PREFIX)/include
+BINDIR ?= $(PREFIX)/bin
+PKGCONFIGDIR ?= $(LIBDIR)/pkgconfig
+
+BUILD ?= build
+CC ?= cc
+AR ?= ar
+CFLAGS ?= -O2 -g
+WERROR ?= -Werror
+# Flags that every variant needs: strict C11, strict IEEE arithmetic (the exact predicates
+# depend on it: never -ffast-math), hidden internal symbols.
+BASE_CFLAGS := -std=c11 -Wall -Wextra -Wpedantic $(WERROR) -ffp-contract=off \
+               -fvisibility=hidden -fPIC -fno-strict-aliasing
+VARIANT_CFLAGS ?=
+ALL_CFLAGS = $(BASE_CFLAGS) $(CFLAGS) $(VARIANT_CFLAGS)
+ALL_CPPFLAGS = -Iinclude -Ilib -D_POSIX_C_SOURCE=200809L $(CPPFLAGS)
+VARIANT_LDFLAGS ?=
+LDLIBS_LIB := -lm
+
+LIB_SRC := $(sort $(wildcard lib/*.c lib/*/*.c))
+LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
+TOOL_SRC := examples/anistar.c
+EXAMPLE_SRC := $(filter-out $(TOOL_SRC),$(sort $(wildcard examples/*.c)))
+EXAMPLES := $(EXAMPLE_SRC:examples/%.c=$(BUILD)/examples/%)
+TEST_SRC := $(sort $(wildcard test/test_*.c))
+TESTS := $(TEST_SRC:test/%.c=$(BUILD)/test/%)
+TEST_COMMON_SRC := $(sort $(wildcard test/common/*.c))
+TEST_COMMON_OBJ := $(TEST_COMMON_SRC:%.c=$(BUILD)/obj/%.o)
+BENCH_SRC := $(sort $(wildcard bench/bench_*.c))
+BENCHES := $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+BENCH_COMMON_SRC := $(sort $(wildcard bench/common/*.c))
+BENCH_COMMON_OBJ := $(BENCH_COMMON_SRC:%.c=$(BUILD)/obj/%.o)
+
+STATIC_LIB := $(BUILD)/libanistar.a
+SHARED_REAL := $(BUILD)/libanistar.so.$(VERSION)
+SHARED_LIBS := $(SHARED_REAL) $(BUILD)/$(SONAME) $(BUILD)/libanistar.so
+TOOL := $(BUILD)/anistar
+
+# Test and bench programs use GMP (exact oracle) and cmocka (runner); the library never.
+TEST_LDLIBS := -lcmocka -lgmp -lm -lpthread
+
+.PHONY: all lib tools examples tests benches check check-deps check-run sanitize bench \
+        demo install uninstall clean
+.DEFAULT_GOAL := all
+
+all: lib tools examples
+
+lib: $(STATIC_LIB) $(SHARED_LIBS)
+tools: $(TOOL)
+examples: $(EXAMPLES)
+tests: $(TESTS)
+benches: $(BENCHES)
+
+$(BUILD)/obj/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CPPFLAGS) $(ALL_CFLAGS) -MMD -MP -c $< -o $@
+
+$(STATIC_LIB): $(LIB_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@
+	$(AR) rcs $@ $(LIB_OBJ)
+
+$(SHARED_REAL): $(LIB_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) -shared -Wl,-soname,$(SONAME) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) \
+	    -o $@ $(LIB_OBJ) $(LDLIBS_LIB)
+
+$(BUILD)/$(SONAME): $(SHARED_REAL)
+	ln -sf $(notdir $<) $@
+
+$(BUILD)/libanistar.so: $(BUILD)/$(SONAME)
+	ln -sf $(notdir $<) $@
+
+$(TOOL): $(BUILD)/obj/examples/anistar.o $(STATIC_LIB)
+	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(STATIC_LIB) $(LDLIBS_LIB)
+
+$(BUILD)/examples/%: $(BUILD)/obj/examples/%.o $(STATIC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(STATIC_LIB) $(LDLIBS_LIB)
+
+# Tests see the internal headers and link the static library (all symbols visible).
+$(BUILD)/test/%: $(BUILD)/obj/test/%.o $(TEST_COMMON_OBJ) $(STATIC_LIB) | $(SHARED_LIBS) $(TOOL)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(TEST_COMMON_OBJ) \
+	    $(STATIC_LIB) $(TEST_LDLIBS)
+
+$(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(BENCH_COMMON_OBJ) $(STATIC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(BENCH_COMMON_OBJ) \
+	    $(STATIC_LIB) $(TEST_LDLIBS)
+
+# Tests find the shared library and the tool of their own variant through these.
+$(BUILD)/obj/test/%.o: ALL_CPPFLAGS += -DAS_TEST_BUILD_DIR='"$(BUILD)"' -DAS_TEST_DATA_DIR='"test/data"'
+
+# ---- check ----------------------------------------------------------------------------
+
+check-deps:
+	@sh test/deps.sh
+
+check: check-deps
+	@$(MAKE) --no-print-directory all tests
+	@sh test/run.sh $(BUILD)
+
+check-run: all tests
+	@sh test/run.sh $(BUILD)
+
+SAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+sanitize: check-deps
+	@$(MAKE) --no-print-directory BUILD=build/asan CFLAGS="-O1 -g" \
+	    VARIANT_CFLAGS="$(SAN_FLAGS)" VARIANT_LDFLAGS="$(SAN_FLAGS)" all tests
+	@ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	    sh test/run.sh build/asan
+
+# ---- bench ----------------------------------------------------------------------------
+
+bench: check-deps
+	@$(MAKE) --no-print-directory BUILD=build/bench CFLAGS="-O2 -g" \
+	    VARIANT_CFLAGS="-DANISTAR_BENCH" benches
+	@sh bench/run.sh build/bench
+
+# ---- demo -----------------------------------------------------------------------------
+
+DEMO_OUT := build/demo
+demo: all
+	@mkdir -p $(DEMO_OUT)
+	@sh examples/demo.sh $(BUILD) $(DEMO_OUT)
+
+# ---- install --------------------------------------------------------------------------
+
+$(BUILD)/anistar.pc: Makefile include/anistar.h
+	@mkdir -p $(dir $@)
+	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$(LIBDIR)' 'includedir=$(INCLUDEDIR)' '' \
+	    'Name: anistar' 'Description: anisotropic Delaunay meshes of surfaces' \
+	    'Version: $(VERSION)' 'Libs: -L$${libdir} -lanistar' 'Libs.private: -lm' \
+	    'Cflags: -I$${includedir}' > $@
+
+install: all $(BUILD)/anistar.pc
+	install -d $(DESTDIR)$(INCLUDEDIR) $(DESTDIR)$(LIBDIR) $(DESTDIR)$(BINDIR) \
+	    $(DESTDIR)$(PKGCONFIGDIR)
+	install -m 644 include/anistar.h $(DESTDIR)$(INCLUDEDIR)/anistar.h
+	install -m 644 $(STATIC_LIB) $(DESTDIR)$(LIBDIR)/libanistar.a
+	install -m 755 $(SHARED_REAL) $(DESTDIR)$(LIBDIR)/libanistar.so.$(VERSION)
+	ln -sf libanistar.so.$(VERSION) $(DESTDIR)$(LIBDIR)/$(SONAME)
+	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libanistar.so
+	install -m 644 $(BUILD)/anistar.pc $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
+	install -m 755 $(TOOL) $(DESTDIR)$(BINDIR)/anistar
+
+uninstall:
+	rm -f $(DESTDIR)$(INCLUDEDIR)/anistar.h $(DESTDIR)$(LIBDIR)/libanistar.a \
+	    $(DESTDIR)$(LIBDIR)/libanistar.so.$(VERSION) $(DESTDIR)$(LIBDIR)/$(SONAME) \
+	    $(DESTDIR)$(LIBDIR)/libanistar.so $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc \
+	    $(DESTDIR)$(BINDIR)/anistar
+
+clean:
+	rm -rf build
+
+-include $(LIB_OBJ:.o=.d) $(TEST_SRC:%.c=$(BUILD)/obj/%.d) $(TEST_COMMON_OBJ:.o=.d) \
+         $(BENCH_SRC:%.c=$(BUILD)/obj/%.d) $(BENCH_COMMON_OBJ:.o=.d) \
+         $(EXAMPLE_SRC:%.c=$(BUILD)/obj/%.d) $(BUILD)/obj/examples/anistar.d

@@ -1,0 +1,84 @@
+/*
+ * core.h — internal: the context structure, allocation through the context allocator,
+ * and error reporting. Every layer may include it (it depends on nothing but the
+ * public header).
+ *
+ * Rules for library code:
+ *  - allocate only through as_alloc/as_realloc/as_free (they use the context allocator,
+ *    so tests can inject failures and users can pool);
+ *  - every fallible function returns anistar_status and, on failure, sets the message
+ *    with as_fail(ctx, status, "what went wrong: %s", ...);
+ *  - internal symbols use the prefix as_ and are hidden from the shared library by
+ *    -fvisibility=hidden (only ANISTAR_API symbols are exported).
+ */
+#ifndef ANISTAR_CORE_H
+#define ANISTAR_CORE_H
+
+#include "anistar.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define AS_ERRMSG_SIZE 512
+
+struct anistar_context {
+    anistar_allocator alloc;
+    anistar_status last_status;
+    char last_error[AS_ERRMSG_SIZE];
+};
+
+#if defined(__GNUC__) || defined(__clang__)
+#define AS_PRINTF(f, a) __attribute__((format(printf, f, a)))
+#define AS_UNLIKELY(x) __builtin_expect(!!(x), 0)
+#define AS_LIKELY(x) __builtin_expect(!!(x), 1)
+#else
+#define AS_PRINTF(f, a)
+#define AS_UNLIKELY(x) (x)
+#define AS_LIKELY(x) (x)
+#endif
+
+/* Record status st and a formatted one-line message in ctx; returns st so that callers
+ * can write `return as_fail(ctx, ANISTAR_EINVAL, "r0 must be > 0, got %g", r0);`.
+ * ctx may be NULL (then nothing is recorded). */
+anistar_status as_fail(anistar_context *ctx, anistar_status st, const char *fmt, ...)
+    AS_PRINTF(3, 4);
+
+/* Clear the last error of ctx (successful public calls need not call it). */
+void as_clear_error(anistar_context *ctx);
+
+/* Allocation. Sizes are in bytes. as_alloc(ctx, 0) returns NULL. */
+static inline void *as_alloc(anistar_context *ctx, size_t n) {
+    if (n == 0) return NULL;
+    return ctx->alloc.fn(ctx->alloc.user, NULL, 0, n);
+}
+static inline void *as_realloc(anistar_context *ctx, void *p, size_t old_n, size_t new_n) {
+    if (new_n == 0) {
+        if (p) ctx->alloc.fn(ctx->alloc.user, p, old_n, 0);
+        return NULL;
+    }
+    return ctx->alloc.fn(ctx->alloc.user, p, p ? old_n : 0, new_n);
+}
+static inline void as_free(anistar_context *ctx, void *p, size_t n) {
+    if (p) ctx->alloc.fn(ctx->alloc.user, p, n, 0);
+}
+
+/* Overflow-checked size arithmetic: returns 0 and sets *out on success, -1 on overflow. */
+static inline int as_mul_size(size_t a, size_t b, size_t *out) {
+    if (b != 0 && a > SIZE_MAX / b) return -1;
+    *out = a * b;
+    return 0;
+}
+
+/* Allocate an array of count elements of size bytes, overflow-checked; NULL on failure
+ * or when count == 0. */
+static inline void *as_alloc_array(anistar_context *ctx, size_t count, size_t size) {
+    size_t n;
+    if (as_mul_size(count, size, &n)) return NULL;
+    return as_alloc(ctx, n);
+}
+
+/* Grow *p (an array of *cap elements of elem bytes) to hold at least need elements,
+ * geometric growth. Returns 0 on success, -1 on failure (then *p and *cap unchanged). */
+int as_grow(anistar_context *ctx, void **p, size_t *cap, size_t need, size_t elem);
+
+#endif /* ANISTAR_CORE_H */

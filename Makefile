@@ -112,8 +112,10 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(BENCH_COMMON_OBJ) $(STATIC_LIB)
 	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(BENCH_COMMON_OBJ) \
 	    $(STATIC_LIB) $(TEST_LDLIBS)
 
+$(BUILD)/obj/bench/%.o: ALL_CPPFLAGS += -Ibench/common -Itest/common
+
 # Tests find the shared library and the tool of their own variant through these.
-$(BUILD)/obj/test/%.o: ALL_CPPFLAGS += -DAS_TEST_BUILD_DIR='"$(BUILD)"' -DAS_TEST_DATA_DIR='"test/data"'
+$(BUILD)/obj/test/%.o: ALL_CPPFLAGS += -Itest/common -DAS_TEST_BUILD_DIR='"$(BUILD)"' -DAS_TEST_DATA_DIR='"test/data"'
 
 # ---- check ----------------------------------------------------------------------------
 

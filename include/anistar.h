@@ -161,6 +161,176 @@ ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const doubl
                                                double f[6]);
 
 /* ==== SURFACES AND METRIC FIELDS (issue 4) — section owned by the surface layer ==== */
+
+/* ------------------------------------------------------------------------------------ */
+/* Surfaces                                                                               */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * A surface S (opaque) is the boundary of the inside region {p : |p - c| <= R, f(p) < 0}
+ * of a function f inside a bounding sphere (center c, radius R): f < 0 inside, and
+ * everything beyond the sphere counts as outside. S must lie strictly inside the sphere.
+ *
+ * Conventions of the queries below:
+ *  - the normal is the OUTWARD unit normal +grad f/|grad f|;
+ *  - principal curvatures are positive where S is convex (a sphere of radius r has
+ *    1/r, 1/r) and of opposite signs at saddle points, k1 >= k2;
+ *  - lengths are accurate to 1e-12 R (roots, projections);
+ *  - a NaN or infinite value of f is an error (ANISTAR_EINVAL, the message names the
+ *    point), never a sign.
+ * A surface keeps a pointer to the context it was made with: the queries below take no
+ * context and record their error messages there, so (as every object of a context) a
+ * surface is queried from one thread at a time through this API. The surface itself is
+ * never modified by a query (the mesher queries one surface from several threads, each
+ * with its own context).
+ */
+typedef struct anistar_surface anistar_surface;
+
+/*
+ * An implicit function given by callbacks. value is required; gradient (g = grad f)
+ * and hessian (h = m11 m12 m13 m22 m23 m33) are optional: when absent, central finite
+ * differences with steps relative to R replace them (gradient: step 6e-6 R, relative
+ * accuracy ~1e-10; Hessian from the gradient: ~1e-10; Hessian from values only: step
+ * 1.2e-4 R, ~1e-8). The callbacks must be pure functions of p (called from several
+ * threads when the surface is shared); user is passed back untouched and stays owned by
+ * the caller, who keeps it alive as long as the surface.
+ */
+typedef struct anistar_implicit_fn {
+    double (*value)(const double p[3], void *user);              /* in: required */
+    void (*gradient)(const double p[3], double g[3], void *user); /* in: may be NULL */
+    void (*hessian)(const double p[3], double h[6], void *user);  /* in: may be NULL */
+    void *user;                                                    /* in: passed back */
+} anistar_implicit_fn;
+
+/* f(x,y,z) = 0 from callbacks, inside the sphere (center, radius > 0). *fn is copied. */
+ANISTAR_API anistar_status anistar_surface_from_implicit(anistar_context *ctx,
+                                                         const anistar_implicit_fn *fn,
+                                                         const double center[3], double radius,
+                                                         anistar_surface **out);
+
+/* f(x,y,z) = 0 from an expression (syntax: docs/cli.md, e.g.
+ * "R=10; r=1; (sqrt(x^2+y^2)-R)^2 + z^2 - r^2"), with exact first and second derivatives.
+ * ANISTAR_EFORMAT for a malformed expression (the message names the column). */
+ANISTAR_API anistar_status anistar_surface_from_expression(anistar_context *ctx,
+                                                           const char *expr,
+                                                           const double center[3],
+                                                           double radius,
+                                                           anistar_surface **out);
+
+/* A built-in surface from "NAME[,PARAM=VALUE]..." (e.g. "torus,R=5,r=2"; every built-in
+ * also takes bound=RADIUS). ANISTAR_EINVAL for an unknown name or parameter or a bad
+ * value. See anistar_surface_builtin_info for the list. */
+ANISTAR_API anistar_status anistar_surface_builtin(anistar_context *ctx, const char *spec,
+                                                   anistar_surface **out);
+
+/* The i-th built-in (i = 0, 1, ...): its name and a one-line description (formula,
+ * parameters and defaults, bounding radius, genus). Static strings. Returns
+ * ANISTAR_EINVAL past the last one. */
+ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **name,
+                                                        const char **description);
+
+/* Free a surface (NULL is ok). Every metric made on it must have been freed before. */
+ANISTAR_API void anistar_surface_free(anistar_surface *s);
+
+/* The bounding sphere. */
+ANISTAR_API anistar_status anistar_surface_bound(const anistar_surface *s, double center[3],
+                                                 double *radius);
+
+/* f at p, and when g (h) is not NULL its gradient (Hessian, m11 m12 m13 m22 m23 m33). */
+ANISTAR_API anistar_status anistar_surface_eval(const anistar_surface *s, const double p[3],
+                                                double *f, double g[3], double h[6]);
+
+/* *side = -1 inside, +1 outside (or beyond the bounding sphere), 0 exactly on S. */
+ANISTAR_API anistar_status anistar_surface_side(const anistar_surface *s, const double p[3],
+                                                int *side);
+
+/* The crossing of the segment [a, b] with S nearest ref: *found = 1 and the point in x,
+ * or *found = 0 when the segment does not meet S (a segment touching S tangentially is
+ * reported at the touching point when that is found within 1e-12 R). */
+ANISTAR_API anistar_status anistar_surface_crossing(const anistar_surface *s, const double a[3],
+                                                    const double b[3], const double ref[3],
+                                                    int *found, double x[3]);
+
+/* The projection of p onto S: the closest point of S when p is closer to S than S's
+ * local radius of curvature (otherwise a nearby foot point), with |f|/|grad f| <= 1e-12 R.
+ * ANISTAR_ENOSURFACE when no zero of f is found near the lines through p tried. */
+ANISTAR_API anistar_status anistar_surface_project(const anistar_surface *s, const double p[3],
+                                                   double q[3]);
+
+/* The outward unit normal of the level set of f through p (S when p is on S).
+ * ANISTAR_EINVAL where grad f vanishes. */
+ANISTAR_API anistar_status anistar_surface_normal(const anistar_surface *s, const double p[3],
+                                                  double n[3]);
+
+/* Principal curvatures k[0] >= k[1] and unit principal directions dir1 (of k[0]), dir2
+ * (of k[1]) of the level set of f through p (dir1, dir2, normal: right-handed). At
+ * umbilic points the directions are any orthonormal tangent pair. dir1, dir2 may be NULL.
+ * ANISTAR_EINVAL where grad f vanishes. */
+ANISTAR_API anistar_status anistar_surface_curvature(const anistar_surface *s,
+                                                     const double p[3], double k[2],
+                                                     double dir1[3], double dir2[3]);
+
+/* ------------------------------------------------------------------------------------ */
+/* Metric fields                                                                          */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * A metric field (opaque) maps points of a surface to metric tensors M (m11 m12 m13 m22
+ * m23 m33). Every tensor it returns is symmetric positive definite with finite entries,
+ * and the eigenvalues of F = M^(1/2) are within a ratio of 1e6 (smaller ones are raised).
+ * A metric keeps a pointer to its surface, which must outlive it, and to the context it
+ * was made with (anistar_metric_eval records its error message there).
+ */
+typedef struct anistar_metric anistar_metric;
+
+/* A custom field: fill m at p (a point of S) given the outward unit normal there
+ * ((0,0,0) where grad f vanishes). Return 0 on success, nonzero on failure (then
+ * anistar_metric_eval fails with ANISTAR_EINVAL). Must be a pure function of its inputs. */
+typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], double m[6],
+                                 void *user);
+
+/* A field from a SPEC, the syntax of the command line's --metric (docs/cli.md):
+ *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]
+ *   | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
+ *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE
+ * Options follow the name (or the expression) after commas at parenthesis depth 0:
+ * "hessian:max(x,y)^2,eps=0.5". Defaults: curvature eps = 1/R (R the bounding radius),
+ * power 1; shock lambda 0.6, phi 1; gradient phi 1; hessian power 0.5 and eps = 1e-3 x
+ * the largest tangential |H| eigenvalue over the surface sample; e_n (F's eigenvalue
+ * along the normal) = the largest tangential eigenvalue of F over a sample of S.
+ * ANISTAR_EINVAL for an unknown name or option or a bad value, ANISTAR_EFORMAT for a
+ * malformed expression or unbalanced parentheses; computing defaults samples S and may
+ * return ANISTAR_ENOSURFACE. sol:FILE is ANISTAR_EINVAL for now (needs a triangle-mesh
+ * surface). */
+ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
+                                                    const anistar_surface *s, const char *spec,
+                                                    anistar_metric **out);
+
+/* Check a SPEC's syntax, names, options and values (compiling any expression) without
+ * a surface: the errors of anistar_metric_from_spec that do not depend on the surface. */
+ANISTAR_API anistar_status anistar_metric_spec_check(anistar_context *ctx, const char *spec);
+
+/* A constant tensor m (must be finite and positive definite). s may be NULL. */
+ANISTAR_API anistar_status anistar_metric_uniform(anistar_context *ctx, const anistar_surface *s,
+                                                  const double m[6], anistar_metric **out);
+
+/* A custom field on s; user is passed back to fn and stays owned by the caller. */
+ANISTAR_API anistar_status anistar_metric_from_callback(anistar_context *ctx,
+                                                        const anistar_surface *s,
+                                                        anistar_metric_fn fn, void *user,
+                                                        anistar_metric **out);
+
+/* The tensor t at p, a point of S. Off S the field is evaluated at p as given (with the
+ * normal and curvatures of the level set of f through p): project first
+ * (anistar_surface_project) for the value on S. ANISTAR_EINVAL, with a message naming p,
+ * when f is not finite at p or a custom callback fails or returns a non-finite or
+ * non-positive-definite tensor. */
+ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const double p[3],
+                                               double t[6]);
+
+/* Free a metric (NULL is ok). */
+ANISTAR_API void anistar_metric_free(anistar_metric *m);
+
 /* ==== END SURFACES AND METRIC FIELDS ==== */
 
 #ifdef __cplusplus

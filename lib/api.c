@@ -175,4 +175,186 @@ ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const doubl
 }
 
 /* ==== SURFACES AND METRIC FIELDS (issue 4) ==== */
+
+#include "surface/field.h"
+#include "surface/surface.h"
+
+static int as_api_finite3(const double p[3]) {
+    return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+}
+
+/* Common checks of the surface queries: s and the point; errors go to s->ctx. */
+static anistar_status as_api_query(const anistar_surface *s, const double p[3],
+                                   const void *outp, const char *fn) {
+    if (!s) return ANISTAR_EINVAL;
+    if (!p || !outp) return as_fail(s->ctx, ANISTAR_EINVAL, "%s: NULL argument", fn);
+    if (!as_api_finite3(p))
+        return as_fail(s->ctx, ANISTAR_EINVAL, "%s: the point is not finite", fn);
+    return ANISTAR_OK;
+}
+
+ANISTAR_API anistar_status anistar_surface_from_implicit(anistar_context *ctx,
+                                                         const anistar_implicit_fn *fn,
+                                                         const double center[3], double radius,
+                                                         anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_implicit: NULL out");
+    *out = NULL;
+    if (!fn || !fn->value || !center)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_surface_from_implicit: NULL callbacks, value callback or center");
+    as_implicit_fn f = {fn->value, fn->gradient, fn->hessian, fn->user};
+    return as_implicit_create(ctx, &f, center, radius, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_expression(anistar_context *ctx,
+                                                           const char *expr,
+                                                           const double center[3],
+                                                           double radius,
+                                                           anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_expression: NULL out");
+    *out = NULL;
+    if (!expr || !center)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_surface_from_expression: NULL expression or center");
+    return as_implicit_from_expression(ctx, expr, center, radius, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_builtin(anistar_context *ctx, const char *spec,
+                                                   anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_builtin: NULL out");
+    *out = NULL;
+    if (!spec) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_builtin: NULL name");
+    return as_implicit_builtin(ctx, spec, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **name,
+                                                        const char **description) {
+    return as_implicit_builtin_info(i, name, description) ? ANISTAR_EINVAL : ANISTAR_OK;
+}
+
+ANISTAR_API void anistar_surface_free(anistar_surface *s) { as_surface_free(s); }
+
+ANISTAR_API anistar_status anistar_surface_bound(const anistar_surface *s, double center[3],
+                                                 double *radius) {
+    if (!s) return ANISTAR_EINVAL;
+    if (!center || !radius)
+        return as_fail(s->ctx, ANISTAR_EINVAL, "anistar_surface_bound: NULL argument");
+    memcpy(center, s->center, 3 * sizeof(double));
+    *radius = s->radius;
+    return ANISTAR_OK;
+}
+
+ANISTAR_API anistar_status anistar_surface_eval(const anistar_surface *s, const double p[3],
+                                                double *f, double g[3], double h[6]) {
+    anistar_status st = as_api_query(s, p, f, "anistar_surface_eval");
+    if (st) return st;
+    return as_surface_eval(s->ctx, s, p, h ? 2 : (g ? 1 : 0), f, g, h);
+}
+
+ANISTAR_API anistar_status anistar_surface_side(const anistar_surface *s, const double p[3],
+                                                int *side) {
+    anistar_status st = as_api_query(s, p, side, "anistar_surface_side");
+    if (st) return st;
+    return as_surface_side(s->ctx, s, p, side);
+}
+
+ANISTAR_API anistar_status anistar_surface_crossing(const anistar_surface *s, const double a[3],
+                                                    const double b[3], const double ref[3],
+                                                    int *found, double x[3]) {
+    anistar_status st = as_api_query(s, a, found, "anistar_surface_crossing");
+    if (st) return st;
+    if (!b || !ref || !x)
+        return as_fail(s->ctx, ANISTAR_EINVAL, "anistar_surface_crossing: NULL argument");
+    if (!as_api_finite3(b) || !as_api_finite3(ref))
+        return as_fail(s->ctx, ANISTAR_EINVAL, "anistar_surface_crossing: a point is not finite");
+    return as_surface_crossing(s->ctx, s, a, b, ref, found, x);
+}
+
+ANISTAR_API anistar_status anistar_surface_project(const anistar_surface *s, const double p[3],
+                                                   double q[3]) {
+    anistar_status st = as_api_query(s, p, q, "anistar_surface_project");
+    if (st) return st;
+    return as_surface_project(s->ctx, s, p, q);
+}
+
+ANISTAR_API anistar_status anistar_surface_normal(const anistar_surface *s, const double p[3],
+                                                  double n[3]) {
+    anistar_status st = as_api_query(s, p, n, "anistar_surface_normal");
+    if (st) return st;
+    return as_surface_normal(s->ctx, s, p, n);
+}
+
+ANISTAR_API anistar_status anistar_surface_curvature(const anistar_surface *s,
+                                                     const double p[3], double k[2],
+                                                     double dir1[3], double dir2[3]) {
+    anistar_status st = as_api_query(s, p, k, "anistar_surface_curvature");
+    if (st) return st;
+    as_surface_frame fr;
+    st = as_surface_frame_at(s->ctx, s, p, &fr);
+    if (st) return st;
+    if (fr.singular)
+        return as_fail(s->ctx, ANISTAR_EINVAL,
+                       "anistar_surface_curvature: grad f vanishes at (%.17g, %.17g, %.17g)",
+                       p[0], p[1], p[2]);
+    k[0] = fr.k[0];
+    k[1] = fr.k[1];
+    if (dir1) memcpy(dir1, fr.d, 3 * sizeof(double));
+    if (dir2) memcpy(dir2, fr.d + 3, 3 * sizeof(double));
+    return ANISTAR_OK;
+}
+
+ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
+                                                    const anistar_surface *s, const char *spec,
+                                                    anistar_metric **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_from_spec: NULL out");
+    *out = NULL;
+    if (!s || !spec)
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_from_spec: NULL surface or spec");
+    return as_field_from_spec(ctx, s, spec, out);
+}
+
+ANISTAR_API anistar_status anistar_metric_spec_check(anistar_context *ctx, const char *spec) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!spec) return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_spec_check: NULL spec");
+    as_field_spec sp;
+    anistar_status st = as_field_spec_parse(ctx, spec, &sp);
+    if (!st) as_field_spec_clear(ctx, &sp);
+    return st;
+}
+
+ANISTAR_API anistar_status anistar_metric_uniform(anistar_context *ctx, const anistar_surface *s,
+                                                  const double m[6], anistar_metric **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_uniform: NULL out");
+    *out = NULL;
+    if (!m) return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_uniform: NULL tensor");
+    return as_field_uniform(ctx, s, m, out);
+}
+
+ANISTAR_API anistar_status anistar_metric_from_callback(anistar_context *ctx,
+                                                        const anistar_surface *s,
+                                                        anistar_metric_fn fn, void *user,
+                                                        anistar_metric **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_metric_from_callback: NULL out");
+    *out = NULL;
+    if (!s || !fn)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_metric_from_callback: NULL surface or callback");
+    return as_field_custom(ctx, s, fn, user, out);
+}
+
+ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const double p[3],
+                                               double t[6]) {
+    if (!m) return ANISTAR_EINVAL;
+    if (!p || !t) return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_metric_eval: NULL argument");
+    return as_field_eval(m->ctx, m, p, t);
+}
+
+ANISTAR_API void anistar_metric_free(anistar_metric *m) { as_field_free(m); }
+
 /* ==== END SURFACES AND METRIC FIELDS ==== */

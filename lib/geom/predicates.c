@@ -1,34 +1,752 @@
-/* PLACEHOLDER — being replaced by the exact implementation (issue 2). */
+/*
+ * predicates.c — exact orient3d and insphere on doubles, and insphere with symbolic
+ * perturbation keyed on global ids (DESIGN.md 4.1; STYLE.md point 7).
+ *
+ * design:
+ *  - Ladder per predicate (Shewchuk 1997, "Adaptive precision floating-point arithmetic
+ *    and fast robust geometric predicates"; our code):
+ *      0. semi-static filter: the plain determinant of the differences plus one bound
+ *         c * max|dx| * max|dy| * max|dz| (* (max|dx|^2+max|dy|^2+max|dz|^2) for
+ *         insphere); c dominates Shewchuk's stage-A bound times the permanent, so the
+ *         common case costs one determinant, a few max/abs and one comparison;
+ *      A. Shewchuk's stage A: the same determinant against errA * permanent;
+ *      B. the exact determinant of the rounded differences (expansions), against
+ *         errB * permanent; if the differences were exact it is the answer;
+ *      C. B's estimate plus the first-order terms of the differences' rounding errors
+ *         (evaluated in floating point), against errC * permanent + resulterr * |det|;
+ *      D. the exact determinant of the raw coordinates (the _exact variant).
+ *    The constants are expressions of DBL_EPSILON, folded at compile time (no init call,
+ *    no globals). Stage C's correction is our own formula; its bound follows the usual
+ *    argument: |second-order remainder| <= ((1+u)^k - 1 - k u) * perm for degree k, and
+ *    the floating-point evaluation of the first-order part, of depth n, errs by at most
+ *    gamma_n * k u * perm; orient3d: k = 3, n = 7 -> 24 u^2 <= 26 u^2; insphere: k = 5,
+ *    n = 11 -> 65 u^2 <= 71 u^2 (the constants of Shewchuk's bounds, which we reuse).
+ *  - Stage-0 constants: orient3d's permanent (computed in floating point) is at most
+ *    6 mx my mz (1+u)^5, insphere's at most 24 mx my mz (mx^2+my^2+mz^2) (1+u)^12, and
+ *    the bound's own products round down by at most (1-u)^4; so
+ *    c_o3d = 6 errA_o3d (1 + 16u) <= (42 + 1100u) u and
+ *    c_isp = 24 errA_isp (1 + 24u) <= (384 + 16384u) u.
+ *  - Non-finite input makes the filter comparisons false (NaN/inf determinant or bound);
+ *    the slow path then sees a non-finite permanent and returns NaN. Finite input whose
+ *    permanent overflows also returns NaN (outside the valid range).
+ *  - Valid input range (what the exactness proof needs and the tests check): finite
+ *    coordinates, each 0 or of magnitude in [1e-40, 1e+40] (see anistar.h). Then every
+ *    intermediate value of every stage is a multiple of 2^-1074 (the coordinates are
+ *    multiples of 2^-185, degree <= 5 products multiples of 2^-925, so underflow is
+ *    exact), and every product stays below 2^700 (no overflow). The bound analysis of
+ *    stages 0-C also needs the bounds themselves to be normal numbers: the smallest
+ *    nonzero bound is >= u * 2^-925. The expansion routines' exactness extends further
+ *    (down to magnitudes ~1.7e-49 and up to ~1e60 for insphere), but only the range
+ *    above is promised and tested.
+ *
+ * insphere_sos — symbolic perturbation (Edelsbrunner & Muecke's SoS applied to the
+ * lifted points; the "first nonzero orient3d minor" rule of Devillers & Teillaud and of
+ * geogram's side4 SOS is its first phase). Our scheme:
+ *  - insphere(a,b,c,d,e) is the 5x5 determinant D of the rows (x, y, z, h, 1) of the
+ *    points in the given order, h = x^2 + y^2 + z^2, i.e. orient4d of the lifted points.
+ *  - Perturb every entry of the first four columns of the row of the point with global
+ *    id I by its own infinitesimal: h by eps^(2^k), x/y/z by eps^(2^k') where, over ALL
+ *    points, the h entries come first ordered by increasing id, then the coordinate
+ *    entries ordered by (id, axis). Within one call this is: rank r of the five ids
+ *    (0 = smallest), h of rank r -> bit r, coordinate k of rank r -> bit 5 + 3 r + k.
+ *  - det(A + E) is a polynomial in eps; the monomial of a partial matching S of
+ *    (row, column) pairs has exponent sum(2^bit) = the bitmask of S, so bigger terms
+ *    have smaller masks, all exponents are distinct, and the sign is the sign of the
+ *    first nonzero coefficient in increasing mask order. By the generalised Laplace
+ *    expansion that coefficient is (-1)^(sum rows + sum cols) sgn(matching) times the
+ *    minor of A without the rows and columns of S.
+ *  - Mask 0 is D itself. Masks 1, 2, 4, 8, 16 (one h entry, the point of rank r) have
+ *    the coefficient (-1)^(i+3) orient3d(the other four points in order), i the row of
+ *    rank r: the lifted-coordinate perturbation |p|^2 + eps^(2^rank(id)). When a, b, c, d
+ *    are not coplanar this phase always decides (e's minor is -orient3d(a,b,c,d) != 0).
+ *  - If all five points are coplanar every such minor vanishes; we continue with the
+ *    masks >= 32 (coordinate entries). A full matching (|S| = 4) leaves the 1x1 minor
+ *    [1], so the sign is never 0; the first one has mask < 2^12, so the scan is short.
+ *  - Consistency: the result is exactly sign(det(A + E)), the orient4d of a fixed
+ *    (id-keyed, call-independent) perturbation of the lifted points, so any set of calls
+ *    is realised by one perturbed point set: swapping two rows flips the sign, permuting
+ *    points together with their ids permutes the determinant's rows, and whenever D != 0
+ *    the sign is D's. orient3d is not perturbed; for a, b, c, d with orient3d != 0 (a
+ *    triangulator only asks insphere_sos for positively oriented tetrahedra) the
+ *    coordinate perturbation is never reached and orient3d of the perturbed points has
+ *    the unperturbed sign, so the perturbed lifted points, whose lower hull is a regular
+ *    triangulation with infinitesimal weights -eps^(2^rank), are consistent with the
+ *    orient3d signs the triangulator sees: it builds that regular triangulation, which is
+ *    a Delaunay triangulation of the unperturbed points.
+ *  - Coincident points (equal coordinates, distinct ids) are handled too: the one with
+ *    the smaller id is lifted more, so it is "outside" every sphere through the other;
+ *    in a triangulation it becomes hidden (a triangulator should merge duplicates first).
+ */
 #include "geom/predicates.h"
+
+#include "geom/expansion.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+/* ---- error bound constants (Shewchuk's, as expressions of u = DBL_EPSILON / 2) ------ */
+
+#define AS_RESULT_ERR ((3.0 + 8.0 * AS_EPS) * AS_EPS)
+#define AS_O3D_ERRA ((7.0 + 56.0 * AS_EPS) * AS_EPS)
+#define AS_O3D_ERRB ((3.0 + 28.0 * AS_EPS) * AS_EPS)
+#define AS_O3D_ERRC ((26.0 + 288.0 * AS_EPS) * AS_EPS * AS_EPS)
+#define AS_O3D_STATIC ((42.0 + 1100.0 * AS_EPS) * AS_EPS)
+#define AS_ISP_ERRA ((16.0 + 224.0 * AS_EPS) * AS_EPS)
+#define AS_ISP_ERRB ((5.0 + 72.0 * AS_EPS) * AS_EPS)
+#define AS_ISP_ERRC ((71.0 + 1408.0 * AS_EPS) * AS_EPS * AS_EPS)
+#define AS_ISP_STATIC ((384.0 + 16384.0 * AS_EPS) * AS_EPS)
+
+/* ---- bench-only counters ------------------------------------------------------------- */
+
+#ifdef ANISTAR_BENCH
+/* initial-exec: one %fs-relative add per count, no __tls_get_addr call in -fPIC code
+ * (which would also make the fast path save registers around it). */
+#if defined(__GNUC__)
+#define AS_TLS_MODEL __attribute__((tls_model("initial-exec")))
+#else
+#define AS_TLS_MODEL
+#endif
+static _Thread_local as_pred_counters as_pc AS_TLS_MODEL;
+as_pred_counters *as_pred_counters_get(void) { return &as_pc; }
+void as_pred_counters_reset(void) { memset(&as_pc, 0, sizeof as_pc); }
+#define AS_COUNT(field) (as_pc.field++)
+#else
+#define AS_COUNT(field) ((void)0)
+#endif
+
+static inline double as_max3(double a, double b, double c) {
+    double m = a > b ? a : b;
+    return m > c ? m : c;
+}
+static inline double as_max4(double a, double b, double c, double d) {
+    double m = a > b ? a : b;
+    double n = c > d ? c : d;
+    return m > n ? m : n;
+}
+
+/* ====================================================================================== */
+/* orient3d                                                                               */
+/* ====================================================================================== */
+
+/* The floating-point determinant of the rows (ad, bd, cd), expanded along z. */
+static inline double as_o3d_det(double adx, double ady, double adz, double bdx, double bdy,
+                                double bdz, double cdx, double cdy, double cdz) {
+    double bc = bdx * cdy - cdx * bdy;
+    double ca = cdx * ady - adx * cdy;
+    double ab = adx * bdy - bdx * ady;
+    return adz * bc + bdz * ca + cdz * ab;
+}
+
+/* out = pz [qr] - qz [pr] + rz [pq] (the 3x3 determinant of the raw rows p, q, r), given
+ * the exact 2x2 xy-minors [qr], [pr], [pq] (4 components each). out: 24 doubles. */
+static int as_det3_raw(const double *p, const double *q, const double *r, const double *qr,
+                       const double *pr, const double *pq, double *out) {
+    double t1[8], t2[8], t3[8], s[16];
+    int l1 = as_exp_scale(4, qr, p[2], t1);
+    int l2 = as_exp_scale(4, pr, -q[2], t2);
+    int l3 = as_exp_scale(4, pq, r[2], t3);
+    int ls = as_exp_sum(l1, t1, l2, t2, s);
+    return as_exp_compress(as_exp_sum(ls, s, l3, t3, out), out);
+}
+
+/* [pq] = px qy - qx py exactly (4 components). */
+static void as_minor2_raw(const double *p, const double *q, double out[4]) {
+    double p1, p0, q1, q0;
+    as_two_product(p[0], q[1], &p1, &p0);
+    as_two_product(q[0], p[1], &q1, &q0);
+    as_two_two_diff(p1, p0, q1, q0, out);
+}
+
+/* out = orient3d(a, b, c, d) exactly, as
+ * det3(a,b,c) - det3(a,b,d) + det3(a,c,d) - det3(b,c,d) on the raw coordinates (the 4x4
+ * determinant of the rows (p, 1) expanded along the ones). out: 96 doubles. */
+static int as_o3d_exact_exp(const double *a, const double *b, const double *c,
+                            const double *d, double *out) {
+    double ab[4], ac[4], ad[4], bc[4], bd[4], cd[4];
+    double abc[24], abd[24], acd[24], bcd[24], s1[48], s2[48];
+    as_minor2_raw(a, b, ab);
+    as_minor2_raw(a, c, ac);
+    as_minor2_raw(a, d, ad);
+    as_minor2_raw(b, c, bc);
+    as_minor2_raw(b, d, bd);
+    as_minor2_raw(c, d, cd);
+    int l1 = as_det3_raw(a, b, c, bc, ac, ab, abc);
+    int l2 = as_det3_raw(a, b, d, bd, ad, ab, abd);
+    int l3 = as_det3_raw(a, c, d, cd, ad, ac, acd);
+    int l4 = as_det3_raw(b, c, d, cd, bd, bc, bcd);
+    as_exp_negate(l2, abd);
+    as_exp_negate(l4, bcd);
+    int m1 = as_exp_sum(l1, abc, l2, abd, s1);
+    int m2 = as_exp_sum(l3, acd, l4, bcd, s2);
+    return as_exp_sum(m1, s1, m2, s2, out);
+}
+
+static double as_o3d_exact_value(const double *a, const double *b, const double *c,
+                                 const double *d) {
+    double e[96];
+    int n = as_o3d_exact_exp(a, b, c, d, e);
+    return as_exp_value(n, e);
+}
+
 double as_orient3d_fast(const double *a, const double *b, const double *c, const double *d) {
+    return as_o3d_det(a[0] - d[0], a[1] - d[1], a[2] - d[2], b[0] - d[0], b[1] - d[1],
+                      b[2] - d[2], c[0] - d[0], c[1] - d[1], c[2] - d[2]);
+}
+
+double as_orient3d_exact(const double *a, const double *b, const double *c, const double *d) {
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(a[k]) || !isfinite(b[k]) || !isfinite(c[k]) || !isfinite(d[k]))
+            return NAN;
+    return as_o3d_exact_value(a, b, c, d);
+}
+
+/* Stages A-D of orient3d (the semi-static filter failed). Returns the determinant's
+ * sign exactly with an approximate magnitude, NaN for non-finite input or overflow. */
+static double as_o3d_adapt(const double *a, const double *b, const double *c,
+                           const double *d) {
     double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
     double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
     double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
-    return adx * (bdy * cdz - bdz * cdy) + bdx * (cdy * adz - cdz * ady) +
-           cdx * (ady * bdz - adz * bdy);
+
+    /* Stage A. */
+    double bdxcdy = bdx * cdy, cdxbdy = cdx * bdy;
+    double cdxady = cdx * ady, adxcdy = adx * cdy;
+    double adxbdy = adx * bdy, bdxady = bdx * ady;
+    double det = adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady);
+    double perm = (fabs(bdxcdy) + fabs(cdxbdy)) * fabs(adz) +
+                  (fabs(cdxady) + fabs(adxcdy)) * fabs(bdz) +
+                  (fabs(adxbdy) + fabs(bdxady)) * fabs(cdz);
+    if (!(perm <= DBL_MAX)) return NAN;
+    double err = AS_O3D_ERRA * perm;
+    if (det > err || -det > err) {
+        AS_COUNT(orient3d_stage[0]);
+        return det;
+    }
+
+    /* Stage B: exact determinant of the rounded differences. */
+    double p1, p0, q1, q0;
+    double bc[4], ca[4], ab[4], t8a[8], t8b[8], t8c[8], t16[16], fin[24];
+    as_two_product(bdx, cdy, &p1, &p0);
+    as_two_product(cdx, bdy, &q1, &q0);
+    as_two_two_diff(p1, p0, q1, q0, bc);
+    as_two_product(cdx, ady, &p1, &p0);
+    as_two_product(adx, cdy, &q1, &q0);
+    as_two_two_diff(p1, p0, q1, q0, ca);
+    as_two_product(adx, bdy, &p1, &p0);
+    as_two_product(bdx, ady, &q1, &q0);
+    as_two_two_diff(p1, p0, q1, q0, ab);
+    int la = as_exp_scale(4, bc, adz, t8a);
+    int lb = as_exp_scale(4, ca, bdz, t8b);
+    int lc = as_exp_scale(4, ab, cdz, t8c);
+    int l16 = as_exp_sum(la, t8a, lb, t8b, t16);
+    int lf = as_exp_sum(l16, t16, lc, t8c, fin);
+    det = as_exp_value(lf, fin);
+    err = AS_O3D_ERRB * perm;
+    if (det >= err || -det >= err) {
+        AS_COUNT(orient3d_stage[1]);
+        return det;
+    }
+
+    /* Stage C: first-order terms of the differences' rounding errors. */
+    double adxt = as_two_diff_tail(a[0], d[0], adx), bdxt = as_two_diff_tail(b[0], d[0], bdx);
+    double cdxt = as_two_diff_tail(c[0], d[0], cdx), adyt = as_two_diff_tail(a[1], d[1], ady);
+    double bdyt = as_two_diff_tail(b[1], d[1], bdy), cdyt = as_two_diff_tail(c[1], d[1], cdy);
+    double adzt = as_two_diff_tail(a[2], d[2], adz), bdzt = as_two_diff_tail(b[2], d[2], bdz);
+    double cdzt = as_two_diff_tail(c[2], d[2], cdz);
+    if (adxt == 0.0 && bdxt == 0.0 && cdxt == 0.0 && adyt == 0.0 && bdyt == 0.0 &&
+        cdyt == 0.0 && adzt == 0.0 && bdzt == 0.0 && cdzt == 0.0) {
+        AS_COUNT(orient3d_stage[1]); /* the differences were exact: B is the answer */
+        return det;
+    }
+    err = AS_O3D_ERRC * perm + AS_RESULT_ERR * fabs(det);
+    det += (adz * ((bdx * cdyt + cdy * bdxt) - (bdy * cdxt + cdx * bdyt)) +
+            adzt * (bdx * cdy - bdy * cdx)) +
+           (bdz * ((cdx * adyt + ady * cdxt) - (cdy * adxt + adx * cdyt)) +
+            bdzt * (cdx * ady - cdy * adx)) +
+           (cdz * ((adx * bdyt + bdy * adxt) - (ady * bdxt + bdx * adyt)) +
+            cdzt * (adx * bdy - ady * bdx));
+    if (det >= err || -det >= err) {
+        AS_COUNT(orient3d_stage[2]);
+        return det;
+    }
+
+    /* Stage D: exact. */
+    AS_COUNT(orient3d_stage[3]);
+    return as_o3d_exact_value(a, b, c, d);
 }
+
 double as_orient3d(const double *a, const double *b, const double *c, const double *d) {
-    return as_orient3d_fast(a, b, c, d);
+    double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
+    double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
+    double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
+    double det = as_o3d_det(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz);
+    double mx = as_max3(fabs(adx), fabs(bdx), fabs(cdx));
+    double my = as_max3(fabs(ady), fabs(bdy), fabs(cdy));
+    double mz = as_max3(fabs(adz), fabs(bdz), fabs(cdz));
+    double bound = AS_O3D_STATIC * (mx * my * mz);
+    AS_COUNT(orient3d_calls);
+    if (det > bound || -det > bound) {
+        AS_COUNT(orient3d_stage[0]);
+        return det;
+    }
+    return as_o3d_adapt(a, b, c, d);
 }
-double as_orient3d_exact(const double *a, const double *b, const double *c, const double *d) {
-    return as_orient3d_fast(a, b, c, d);
+
+/* ====================================================================================== */
+/* insphere                                                                               */
+/* ====================================================================================== */
+
+/* The floating-point determinant of the rows (pe, |pe|^2), p = a, b, c, d, expanded
+ * along the lift column: dlift abc - clift dab + blift cda - alift bcd. */
+static inline double as_isp_det(double aex, double aey, double aez, double bex, double bey,
+                                double bez, double cex, double cey, double cez, double dex,
+                                double dey, double dez) {
+    double ab = aex * bey - bex * aey;
+    double bc = bex * cey - cex * bey;
+    double cd = cex * dey - dex * cey;
+    double da = dex * aey - aex * dey;
+    double ac = aex * cey - cex * aey;
+    double bd = bex * dey - dex * bey;
+    double abc = aez * bc - bez * ac + cez * ab;
+    double bcd = bez * cd - cez * bd + dez * bc;
+    double cda = cez * da + dez * ac + aez * cd;
+    double dab = dez * ab + aez * bd + bez * da;
+    double alift = aex * aex + aey * aey + aez * aez;
+    double blift = bex * bex + bey * bey + bez * bez;
+    double clift = cex * cex + cey * cey + cez * cez;
+    double dlift = dex * dex + dey * dey + dez * dez;
+    return (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
 }
+
+/* out = s (x^2 + y^2 + z^2) t exactly, s = +1 or -1. t: tlen <= 96 components;
+ * out: 12 tlen doubles. */
+static int as_lift_scale(int tlen, const double *t, double x, double y, double z, double s,
+                         double *out) {
+    double u1[192], ux[384], uy[384], uz[384], sxy[768];
+    int n1 = as_exp_scale(tlen, t, x, u1);
+    int nx = as_exp_scale(n1, u1, s * x, ux);
+    n1 = as_exp_scale(tlen, t, y, u1);
+    int ny = as_exp_scale(n1, u1, s * y, uy);
+    n1 = as_exp_scale(tlen, t, z, u1);
+    int nz = as_exp_scale(n1, u1, s * z, uz);
+    int nxy = as_exp_sum(nx, ux, ny, uy, sxy);
+    return as_exp_sum(nxy, sxy, nz, uz, out);
+}
+
+/* insphere(a, b, c, d, e) exactly, as the 5x5 determinant of the raw rows
+ * (x, y, z, h, 1) expanded along h: the sum over m of (-1)^(m+1) h_m orient3d(the other
+ * four), m 0-based; orient3d(p, q, r, s) = [pqr] - [pqs] + [prs] - [qrs] with the raw
+ * 3x3 determinants. Returns a double with the exact sign. Uses about 110 KB of stack
+ * (the expansion can reach 5760 components). */
+static double as_isp_exact_value(const double *a, const double *b, const double *c,
+                                 const double *d, const double *e) {
+    const double *p[5] = {a, b, c, d, e};
+    double m2[10][4];
+    double m3[10][24];
+    int l3[10];
+    int idx2[5][5], idx3[5][5][5];
+    int k = 0;
+    for (int i = 0; i < 5; i++)
+        for (int j = i + 1; j < 5; j++) {
+            as_minor2_raw(p[i], p[j], m2[k]);
+            idx2[i][j] = k++;
+        }
+    k = 0;
+    for (int i = 0; i < 5; i++)
+        for (int j = i + 1; j < 5; j++)
+            for (int l = j + 1; l < 5; l++) {
+                l3[k] = as_det3_raw(p[i], p[j], p[l], m2[idx2[j][l]], m2[idx2[i][l]],
+                                    m2[idx2[i][j]], m3[k]);
+                idx3[i][j][l] = k++;
+            }
+    /* Running sums alternate between big (lengths 1152, 3456, 5760) and small (2304,
+     * 4608). */
+    double big[5760], small[4608], term[1152];
+    int blen = 0, slen = 0;
+    for (int m = 0; m < 5; m++) {
+        int r[4], n = 0;
+        for (int i = 0; i < 5; i++)
+            if (i != m) r[n++] = i;
+        double neg1[24], neg3[24], s1[48], s2[48], o[96];
+        int k0 = idx3[r[0]][r[1]][r[2]], k1 = idx3[r[0]][r[1]][r[3]];
+        int k2 = idx3[r[0]][r[2]][r[3]], k3 = idx3[r[1]][r[2]][r[3]];
+        memcpy(neg1, m3[k1], (size_t)l3[k1] * sizeof(double));
+        memcpy(neg3, m3[k3], (size_t)l3[k3] * sizeof(double));
+        as_exp_negate(l3[k1], neg1);
+        as_exp_negate(l3[k3], neg3);
+        int ls1 = as_exp_sum(l3[k0], m3[k0], l3[k1], neg1, s1);
+        int ls2 = as_exp_sum(l3[k2], m3[k2], l3[k3], neg3, s2);
+        int lo = as_exp_compress(as_exp_sum(ls1, s1, ls2, s2, o), o);
+        double s = (m % 2 == 0) ? -1.0 : 1.0;
+        if (m == 0) {
+            blen = as_lift_scale(lo, o, p[m][0], p[m][1], p[m][2], s, big);
+            blen = as_exp_compress(blen, big);
+        } else {
+            int lt = as_lift_scale(lo, o, p[m][0], p[m][1], p[m][2], s, term);
+            lt = as_exp_compress(lt, term);
+            if (m % 2 == 1)
+                slen = as_exp_compress(as_exp_sum(blen, big, lt, term, small), small);
+            else
+                blen = as_exp_compress(as_exp_sum(slen, small, lt, term, big), big);
+        }
+    }
+    return as_exp_value(blen, big);
+}
+
 double as_insphere_fast(const double *a, const double *b, const double *c, const double *d,
                         const double *e) {
-    (void)a; (void)b; (void)c; (void)d; (void)e;
-    return 0.0;
+    return as_isp_det(a[0] - e[0], a[1] - e[1], a[2] - e[2], b[0] - e[0], b[1] - e[1],
+                      b[2] - e[2], c[0] - e[0], c[1] - e[1], c[2] - e[2], d[0] - e[0],
+                      d[1] - e[1], d[2] - e[2]);
 }
-double as_insphere(const double *a, const double *b, const double *c, const double *d,
-                   const double *e) {
-    return as_insphere_fast(a, b, c, d, e);
-}
+
 double as_insphere_exact(const double *a, const double *b, const double *c, const double *d,
                          const double *e) {
-    return as_insphere_fast(a, b, c, d, e);
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(a[k]) || !isfinite(b[k]) || !isfinite(c[k]) || !isfinite(d[k]) ||
+            !isfinite(e[k]))
+            return NAN;
+    return as_isp_exact_value(a, b, c, d, e);
 }
+
+/* out[4] = p1 q2 - q1 p2 exactly from the rounded differences. */
+static void as_minor2(double p1, double p2, double q1, double q2, double out[4]) {
+    double x1, x0, y1, y0;
+    as_two_product(p1, q2, &x1, &x0);
+    as_two_product(q1, p2, &y1, &y0);
+    as_two_two_diff(x1, x0, y1, y0, out);
+}
+
+/* out = pz [qr] - qz [pr] + rz [pq] with the z entries and minors given; out: 24. */
+static int as_det3_of(double pz, double qz, double rz, const double *qr, const double *pr,
+                      const double *pq, double *out) {
+    double t1[8], t2[8], t3[8], s[16];
+    int l1 = as_exp_scale(4, qr, pz, t1);
+    int l2 = as_exp_scale(4, pr, -qz, t2);
+    int l3 = as_exp_scale(4, pq, rz, t3);
+    int ls = as_exp_sum(l1, t1, l2, t2, s);
+    return as_exp_compress(as_exp_sum(ls, s, l3, t3, out), out);
+}
+
+/* Stages A-D of insphere (the semi-static filter failed). */
+static double as_isp_adapt(const double *a, const double *b, const double *c,
+                           const double *d, const double *e) {
+    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
+    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
+    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
+
+    /* Stage A (the same floating-point determinant as as_isp_det), with the permanent. */
+    double aexbey = aex * bey, bexaey = bex * aey, bexcey = bex * cey, cexbey = cex * bey;
+    double cexdey = cex * dey, dexcey = dex * cey, dexaey = dex * aey, aexdey = aex * dey;
+    double aexcey = aex * cey, cexaey = cex * aey, bexdey = bex * dey, dexbey = dex * bey;
+    double ab = aexbey - bexaey, bc = bexcey - cexbey, cd = cexdey - dexcey;
+    double da = dexaey - aexdey, ac = aexcey - cexaey, bd = bexdey - dexbey;
+    double abc = aez * bc - bez * ac + cez * ab;
+    double bcd = bez * cd - cez * bd + dez * bc;
+    double cda = cez * da + dez * ac + aez * cd;
+    double dab = dez * ab + aez * bd + bez * da;
+    double alift = aex * aex + aey * aey + aez * aez;
+    double blift = bex * bex + bey * bey + bez * bez;
+    double clift = cex * cex + cey * cey + cez * cez;
+    double dlift = dex * dex + dey * dey + dez * dez;
+    double det = (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
+    double pab = fabs(aexbey) + fabs(bexaey), pbc = fabs(bexcey) + fabs(cexbey);
+    double pcd = fabs(cexdey) + fabs(dexcey), pda = fabs(dexaey) + fabs(aexdey);
+    double pac = fabs(aexcey) + fabs(cexaey), pbd = fabs(bexdey) + fabs(dexbey);
+    double faz = fabs(aez), fbz = fabs(bez), fcz = fabs(cez), fdz = fabs(dez);
+    double pabc = faz * pbc + fbz * pac + fcz * pab;
+    double pbcd = fbz * pcd + fcz * pbd + fdz * pbc;
+    double pcda = fcz * pda + fdz * pac + faz * pcd;
+    double pdab = fdz * pab + faz * pbd + fbz * pda;
+    double perm = (dlift * pabc + clift * pdab) + (blift * pcda + alift * pbcd);
+    if (!(perm <= DBL_MAX)) return NAN;
+    double err = AS_ISP_ERRA * perm;
+    if (det > err || -det > err) {
+        AS_COUNT(insphere_stage[0]);
+        return det;
+    }
+
+    /* Stage B: exact determinant of the rounded differences. */
+    {
+        double xab[4], xbc[4], xcd[4], xda[4], xac[4], xbd[4];
+        double xabc[24], xbcd[24], xcda[24], xdab[24];
+        double ta[288], tb[288], tc[288], td[288], s1[576], s2[576], fin[1152];
+        as_minor2(aex, aey, bex, bey, xab);
+        as_minor2(bex, bey, cex, cey, xbc);
+        as_minor2(cex, cey, dex, dey, xcd);
+        as_minor2(dex, dey, aex, aey, xda);
+        as_minor2(aex, aey, cex, cey, xac);
+        as_minor2(bex, bey, dex, dey, xbd);
+        /* abc = aez bc - bez ac + cez ab; bcd = bez cd - cez bd + dez bc;
+         * cda = cez da + dez ac + aez cd = cez da - dez (-ac) + aez cd;
+         * dab = dez ab + aez bd + bez da. as_det3_of(p, q, r, .) = p X - q Y + r Z. */
+        int nabc = as_det3_of(aez, bez, cez, xbc, xac, xab, xabc);
+        int nbcd = as_det3_of(bez, cez, dez, xcd, xbd, xbc, xbcd);
+        int ncda = as_det3_of(cez, -dez, aez, xda, xac, xcd, xcda);
+        int ndab = as_det3_of(dez, -aez, bez, xab, xbd, xda, xdab);
+        int la = as_lift_scale(nbcd, xbcd, aex, aey, aez, -1.0, ta);
+        int lb = as_lift_scale(ncda, xcda, bex, bey, bez, 1.0, tb);
+        int lc = as_lift_scale(ndab, xdab, cex, cey, cez, -1.0, tc);
+        int ld = as_lift_scale(nabc, xabc, dex, dey, dez, 1.0, td);
+        int l1 = as_exp_sum(ld, td, lc, tc, s1);
+        int l2 = as_exp_sum(lb, tb, la, ta, s2);
+        int lf = as_exp_sum(l1, s1, l2, s2, fin);
+        det = as_exp_value(lf, fin);
+    }
+    err = AS_ISP_ERRB * perm;
+    if (det >= err || -det >= err) {
+        AS_COUNT(insphere_stage[1]);
+        return det;
+    }
+
+    /* Stage C: first-order terms of the differences' rounding errors. */
+    double aext = as_two_diff_tail(a[0], e[0], aex), bext = as_two_diff_tail(b[0], e[0], bex);
+    double cext = as_two_diff_tail(c[0], e[0], cex), dext = as_two_diff_tail(d[0], e[0], dex);
+    double aeyt = as_two_diff_tail(a[1], e[1], aey), beyt = as_two_diff_tail(b[1], e[1], bey);
+    double ceyt = as_two_diff_tail(c[1], e[1], cey), deyt = as_two_diff_tail(d[1], e[1], dey);
+    double aezt = as_two_diff_tail(a[2], e[2], aez), bezt = as_two_diff_tail(b[2], e[2], bez);
+    double cezt = as_two_diff_tail(c[2], e[2], cez), dezt = as_two_diff_tail(d[2], e[2], dez);
+    if (aext == 0.0 && bext == 0.0 && cext == 0.0 && dext == 0.0 && aeyt == 0.0 &&
+        beyt == 0.0 && ceyt == 0.0 && deyt == 0.0 && aezt == 0.0 && bezt == 0.0 &&
+        cezt == 0.0 && dezt == 0.0) {
+        AS_COUNT(insphere_stage[1]); /* the differences were exact: B is the answer */
+        return det;
+    }
+    err = AS_ISP_ERRC * perm + AS_RESULT_ERR * fabs(det);
+    /* Differentials of the 2x2 minors: d(pq) = (pxt qy + px qyt) - (qxt py + qx pyt). */
+    double dab_ = (aext * bey + aex * beyt) - (bext * aey + bex * aeyt);
+    double dbc_ = (bext * cey + bex * ceyt) - (cext * bey + cex * beyt);
+    double dcd_ = (cext * dey + cex * deyt) - (dext * cey + dex * ceyt);
+    double dda_ = (dext * aey + dex * aeyt) - (aext * dey + aex * deyt);
+    double dac_ = (aext * cey + aex * ceyt) - (cext * aey + cex * aeyt);
+    double dbd_ = (bext * dey + bex * deyt) - (dext * bey + dex * beyt);
+    /* Differentials of the 3x3 minors (same shapes as abc, bcd, cda, dab). */
+    double dabc = ((aezt * bc + aez * dbc_) - (bezt * ac + bez * dac_)) + (cezt * ab + cez * dab_);
+    double dbcd = ((bezt * cd + bez * dcd_) - (cezt * bd + cez * dbd_)) + (dezt * bc + dez * dbc_);
+    double dcda = ((cezt * da + cez * dda_) + (dezt * ac + dez * dac_)) + (aezt * cd + aez * dcd_);
+    double ddab = ((dezt * ab + dez * dab_) + (aezt * bd + aez * dbd_)) + (bezt * da + bez * dda_);
+    /* Differentials of the lifts (times 1/2). */
+    double dal = aex * aext + aey * aeyt + aez * aezt;
+    double dbl = bex * bext + bey * beyt + bez * bezt;
+    double dcl = cex * cext + cey * ceyt + cez * cezt;
+    double ddl = dex * dext + dey * deyt + dez * dezt;
+    det += ((2.0 * ddl * abc + dlift * dabc) - (2.0 * dcl * dab + clift * ddab)) +
+           ((2.0 * dbl * cda + blift * dcda) - (2.0 * dal * bcd + alift * dbcd));
+    if (det >= err || -det >= err) {
+        AS_COUNT(insphere_stage[2]);
+        return det;
+    }
+
+    /* Stage D: exact. */
+    AS_COUNT(insphere_stage[3]);
+    return as_isp_exact_value(a, b, c, d, e);
+}
+
+double as_insphere(const double *a, const double *b, const double *c, const double *d,
+                   const double *e) {
+    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
+    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
+    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
+    double det = as_isp_det(aex, aey, aez, bex, bey, bez, cex, cey, cez, dex, dey, dez);
+    double mx = as_max4(fabs(aex), fabs(bex), fabs(cex), fabs(dex));
+    double my = as_max4(fabs(aey), fabs(bey), fabs(cey), fabs(dey));
+    double mz = as_max4(fabs(aez), fabs(bez), fabs(cez), fabs(dez));
+    double bound = AS_ISP_STATIC * ((mx * my * mz) * ((mx * mx + my * my) + mz * mz));
+    AS_COUNT(insphere_calls);
+    if (det > bound || -det > bound) {
+        AS_COUNT(insphere_stage[0]);
+        return det;
+    }
+    return as_isp_adapt(a, b, c, d, e);
+}
+
+/* ====================================================================================== */
+/* insphere with symbolic perturbation                                                    */
+/* ====================================================================================== */
+
+/* The five rows of the 5x5 matrix and their exact lifts. */
+typedef struct as_sos_rows {
+    const double *p[5];
+    double h[5][6];
+    int hlen[5];
+} as_sos_rows;
+
+/* out = A[r][col] - A[last][col] exactly (col 0..2: a coordinate, 3: the lift).
+ * Returns the length (<= 12). */
+static int as_sos_entry(const as_sos_rows *s, int r, int last, int col, double *out) {
+    if (col < 3) {
+        double x, y;
+        as_two_diff(s->p[r][col], s->p[last][col], &x, &y);
+        out[0] = y;
+        out[1] = x;
+        return 2;
+    }
+    double neg[6];
+    for (int i = 0; i < s->hlen[last]; i++) neg[i] = -s->h[last][i];
+    return as_exp_sum(s->hlen[r], s->h[r], s->hlen[last], neg, out);
+}
+
+/* h = e * f exactly; requires 2 elen flen <= 384 and flen <= 12. h must not alias e or
+ * f. Returns h's length. */
+static int as_exp_mul(int elen, const double *e, int flen, const double *f, double *h) {
+    if (flen > elen) {
+        const double *t = e;
+        int tl = elen;
+        e = f;
+        elen = flen;
+        f = t;
+        flen = tl;
+    }
+    double sc[384], acc[2][384];
+    int cur = 0;
+    int alen = as_exp_scale(elen, e, f[0], acc[0]);
+    for (int j = 1; j < flen; j++) {
+        int sl = as_exp_scale(elen, e, f[j], sc);
+        alen = as_exp_sum(alen, acc[cur], sl, sc, acc[1 - cur]);
+        cur = 1 - cur;
+    }
+    memcpy(h, acc[cur], (size_t)alen * sizeof(double));
+    return alen;
+}
+
+/* out = e00 e11 - e01 e10 exactly (entries of length <= 12, one column at most of length
+ * > 2). out: <= 96 doubles. */
+static int as_det2_exp(int l00, const double *e00, int l01, const double *e01, int l10,
+                       const double *e10, int l11, const double *e11, double *out) {
+    double x[48], y[48];
+    int lx = as_exp_mul(l00, e00, l11, e11, x);
+    int ly = as_exp_mul(l01, e01, l10, e10, y);
+    as_exp_negate(ly, y);
+    return as_exp_sum(lx, x, ly, y, out);
+}
+
+/* The sign of the minor of the 5x5 matrix on the rows rows[0..m-1] (increasing) and the
+ * columns cols[0..m-2] (increasing, perturbed columns 0..3) plus the ones column.
+ * Subtracting the last row and expanding along the ones column leaves the (m-1)x(m-1)
+ * determinant of the row differences. */
+static int as_sos_minor_sign(const as_sos_rows *s, const int *rows, int m, const int *cols) {
+    if (m == 1) return 1;
+    int last = rows[m - 1], n = m - 1;
+    double ent[3][3][12];
+    int len[3][3];
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) len[i][j] = as_sos_entry(s, rows[i], last, cols[j], ent[i][j]);
+    if (n == 1) return as_exp_sign(len[0][0], ent[0][0]);
+    if (n == 2) {
+        double d[96];
+        int l = as_det2_exp(len[0][0], ent[0][0], len[0][1], ent[0][1], len[1][0], ent[1][0],
+                            len[1][1], ent[1][1], d);
+        return as_exp_sign(l, d);
+    }
+    /* n == 3: Laplace along row 0. */
+    double term[3][384], s01[768], tot[1152];
+    int lt[3];
+    for (int j = 0; j < 3; j++) {
+        int c0 = j == 0 ? 1 : 0, c1 = j == 2 ? 1 : 2;
+        double mnr[96];
+        int lm = as_det2_exp(len[1][c0], ent[1][c0], len[1][c1], ent[1][c1], len[2][c0],
+                             ent[2][c0], len[2][c1], ent[2][c1], mnr);
+        lt[j] = as_exp_mul(len[0][j], ent[0][j], lm, mnr, term[j]);
+        if (j == 1) as_exp_negate(lt[j], term[j]);
+    }
+    int l01 = as_exp_sum(lt[0], term[0], lt[1], term[1], s01);
+    int l = as_exp_sum(l01, s01, lt[2], term[2], tot);
+    return as_exp_sign(l, tot);
+}
+
+/* The coordinate phase (all five points coplanar): scan the partial matchings in
+ * increasing mask order from 32 on (see the header). */
+static int as_sos_coord_phase(const as_sos_rows *s, const int order[5]) {
+    for (unsigned mask = 32; mask < (1u << 20); mask++) {
+        int er[4], ec[4], n = 0, ok = 1;
+        unsigned rows_used = 0, cols_used = 0;
+        for (int bit = 0; bit < 20 && ok; bit++) {
+            if (!(mask & (1u << bit))) continue;
+            if (n == 4) {
+                ok = 0;
+                break;
+            }
+            int r, col;
+            if (bit < 5) {
+                r = order[bit];
+                col = 3;
+            } else {
+                r = order[(bit - 5) / 3];
+                col = (bit - 5) % 3;
+            }
+            if ((rows_used >> r) & 1u || (cols_used >> col) & 1u) ok = 0;
+            rows_used |= 1u << r;
+            cols_used |= 1u << col;
+            er[n] = r;
+            ec[n] = col;
+            n++;
+        }
+        if (!ok) continue;
+        /* Sign of the matching as a bijection from sorted rows to sorted columns: the
+         * parity of the inversions of the columns listed by increasing row. */
+        int parity = 0;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                if (er[i] < er[j] && ec[i] > ec[j]) parity ^= 1;
+        for (int i = 0; i < n; i++) parity ^= (er[i] + ec[i]) & 1;
+        int rows[5], cols[4], m = 0, k = 0;
+        for (int r = 0; r < 5; r++)
+            if (!((rows_used >> r) & 1u)) rows[m++] = r;
+        for (int col = 0; col < 4; col++)
+            if (!((cols_used >> col) & 1u)) cols[k++] = col;
+        int sg = as_sos_minor_sign(s, rows, m, cols);
+        if (sg != 0) return parity ? -sg : sg;
+    }
+    return 1; /* unreachable: a full matching (mask < 2^12) has the minor [1] */
+}
+
 int as_insphere_sos(const double *a, const double *b, const double *c, const double *d,
                     const double *e, int64_t ia, int64_t ib, int64_t ic, int64_t id,
                     int64_t ie) {
-    (void)ia; (void)ib; (void)ic; (void)id; (void)ie;
-    return as_insphere(a, b, c, d, e) > 0 ? 1 : -1;
+    AS_COUNT(insphere_sos_calls);
+    double v = as_insphere(a, b, c, d, e);
+    if (v > 0) return 1;
+    if (v < 0) return -1;
+    AS_COUNT(insphere_sos_perturbed);
+
+    as_sos_rows s;
+    s.p[0] = a;
+    s.p[1] = b;
+    s.p[2] = c;
+    s.p[3] = d;
+    s.p[4] = e;
+    int64_t ids[5] = {ia, ib, ic, id, ie};
+    int order[5] = {0, 1, 2, 3, 4};
+    for (int i = 1; i < 5; i++) /* insertion sort of the rows by id */
+        for (int j = i; j > 0 && ids[order[j]] < ids[order[j - 1]]; j--) {
+            int t = order[j];
+            order[j] = order[j - 1];
+            order[j - 1] = t;
+        }
+
+    /* Lift phase: masks 1, 2, 4, 8, 16. */
+    for (int r = 0; r < 5; r++) {
+        int i = order[r];
+        const double *q[4];
+        int n = 0;
+        for (int j = 0; j < 5; j++)
+            if (j != i) q[n++] = s.p[j];
+        double o = as_orient3d(q[0], q[1], q[2], q[3]);
+        if (o != 0.0) {
+            int sg = o > 0 ? 1 : -1;
+            return ((i + 3) & 1) ? -sg : sg;
+        }
+    }
+
+    /* Coordinate phase: exact lifts first. */
+    for (int i = 0; i < 5; i++) {
+        double sx[2], sy[2], sz[2], t[4];
+        as_two_square(s.p[i][0], &sx[1], &sx[0]);
+        as_two_square(s.p[i][1], &sy[1], &sy[0]);
+        as_two_square(s.p[i][2], &sz[1], &sz[0]);
+        int lt = as_exp_sum(2, sx, 2, sy, t);
+        s.hlen[i] = as_exp_sum(lt, t, 2, sz, s.h[i]);
+    }
+    return as_sos_coord_phase(&s, order);
 }

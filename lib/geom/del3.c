@@ -1,0 +1,1374 @@
+/*
+ * del3.c — incremental Bowyer-Watson 3D Delaunay triangulation on pooled arrays (del3.h).
+ *
+ * design: DESIGN.md 4.3 (the star triangulator), paper 3.1 (Del_M(V) is the Euclidean
+ * Delaunay triangulation of the stretched points F_M V) and 5.3 (small star
+ * triangulations, the 8 box corners).
+ *
+ * ---- The infinite vertex and the perturbation -------------------------------------------
+ *
+ * Perturbation. as_insphere_sos(a,b,c,d,e; ids) decides insphere ties as if each point x
+ * were lifted to |x|^2 + eps_x, with infinitesimal eps_x ordered by global id (the
+ * scheme of predicates.c: a weighted/regular triangulation with infinitesimal generic
+ * weights; coordinates are not perturbed, so as_orient3d stays exact and unperturbed).
+ * The triangulation we maintain is the regular triangulation T of the perturbed lifted
+ * points: unique, independent of the insertion order, with every point a vertex (lifted
+ * points lie on a strictly convex paraboloid, so none is hidden) and no flat tet.
+ *
+ * Infinite vertex. The hull faces of T are closed by tets (inf, a, b, c): T becomes a
+ * triangulation of the 3-sphere, every face has two sides and every point of R^3 lies in
+ * the closure of some tet. An infinite tet is oriented so that replacing inf by a point q
+ * gives orient3d > 0 exactly when q is strictly beyond its hull face ("visible").
+ *
+ * Conflict rule (a tet is in conflict with p iff an insertion of p destroys it):
+ *   finite tet t:            insphere_sos(t, p) > 0;
+ *   infinite tet (inf,abc):  o = orient3d(abc with p in inf's slot);
+ *                            o > 0 -> conflict (p sees the hull face: it stops being one);
+ *                            o < 0 -> no conflict;
+ *                            o = 0 -> conflict iff insphere_sos(t', p) > 0, t' = (abcd)
+ *                                     the finite tet on the other side of abc.
+ * Proof of the coplanar case. Let p lie on the plane H of abc. (i) Geometry: the ball of
+ * every sphere through a, b, c meets H in the circumdisk of abc, so for the finite
+ * neighbour t' (any d off H) insphere(t', p) > 0 iff p is strictly inside the circumcircle
+ * of abc, and = 0 iff on it. (ii) Perturbation: with H rotated to z = 0, the 5x5 lifted
+ * determinant of (a,b,c,d,p) has only one non-zero entry in its z column (row d), so it
+ * equals +-z_d times the 4x4 lifted incircle determinant of (a,b,c,p) in H with the SAME
+ * lifts |x|^2 + eps_x; every term of the eps-expansion factors the same way (the term of
+ * eps_d is orient3d(a,b,c,p) = 0). Hence insphere_sos(t', p) is, up to the orientation
+ * sign that the positive orientation of t' fixes, the perturbed 2D incircle test of p
+ * against abc in H — independent of d. (iii) Hull: H is a supporting plane of the hull of
+ * the old and of the new point set; the part of T's boundary in H is the regular
+ * triangulation of the points in H with the restricted lifts (a face of a regular
+ * subdivision restricted to a face of the hull), so the hull face abc survives the
+ * insertion of p in H iff p is not in 2D perturbed conflict with abc, which is exactly
+ * the rule. If p is off H, the facets in H do not change and the sign of o decides.
+ * Consequences used below, each exact:
+ *   - the conflict zone is the set of simplices of the old S^3 triangulation that are not
+ *     in the new one; it is connected (the visible part of the lower hull of the lifted
+ *     points, plus visible hull faces) and we grow it by adjacency from one conflict tet;
+ *   - every cavity boundary face sees p strictly: for two finite tets, the two lifted
+ *     hyperplanes agree over the face's plane, so p on that plane would be both strictly
+ *     below one and strictly above the other at the same height — impossible; for a
+ *     finite tet t' next to an infinite one across hull face abc, p coplanar with abc puts
+ *     both on the same side of the rule (both decided by insphere_sos(t', p)); for two
+ *     infinite tets sharing (inf, a, b), p collinear with a, b is either strictly inside
+ *     both circumcircles (between a and b: both conflict) or outside both (not on the hull
+ *     faces' circles: neither conflicts by the coplanar rule) — so the new infinite tet
+ *     (inf, a, b, p) is never flat. New tets are therefore never flat and positively
+ *     oriented by construction (they inherit the orientation of the tet they replace);
+ *   - the walk ends in a finite tet whose closure contains p (then p is strictly inside its
+ *     circumball unless p is one of its vertices — the duplicate test) or steps through a
+ *     hull face that p strictly sees (an infinite tet in conflict): the start of the zone
+ *     needs no predicate.
+ * Local Delaunay (every tet versus the opposite vertex of each neighbour, with the rule
+ * above) everywhere implies the empty-sphere property: the lifted lower hull is then
+ * locally convex, hence convex; the infinite tets' local test makes the hull convex and
+ * its coplanar parts 2D perturbed-Delaunay. as_del3_check_delaunay tests exactly that.
+ *
+ * ---- Memory --------------------------------------------------------------------------
+ *
+ * next[t]: for a free slot the next free slot (-1 ends the free list); for a live tet
+ * NEXT_NONE, or during an operation: the next tet of the conflict list (NEXT_END ends it)
+ * or NEXT_OUT (visited, not in conflict). Every operation leaves all live tets NEXT_NONE.
+ * Vertex data and tet data live in one block each (grown by copying, so a failed growth
+ * leaves everything as it was). An insertion reserves everything it needs before it
+ * modifies anything: ANISTAR_ENOMEM always leaves the triangulation unchanged.
+ */
+#include "geom/del3.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+#include "geom/predicates.h"
+#include "geom/sort.h"
+
+enum { NEXT_NONE = -1, NEXT_END = -2, NEXT_OUT = -3 };
+enum { EDGE_EMPTY = INT32_MIN, EDGE_USED = INT32_MIN + 1 };
+#define MAX_TETS ((size_t)(INT32_MAX / 4))
+#define MAX_VERTS ((int32_t)(INT32_MAX - 2))
+
+/* face_vtx[i]: the vertices of face i (opposite vertex i) so that (i, f0, f1, f2) is an
+ * even permutation: the two tets of a face list it in opposite orientations. */
+static const int8_t face_vtx[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+/* edge_xy[s][j]: a tet with the new point at slot s; its face j (j != s) holds the new
+ * point and the edge (v[x], v[y]) in face j's orientation (face j rotated to start at s).
+ * The neighbouring new tet holds the same edge reversed. */
+static const int8_t edge_xy[4][4][2] = {
+    {{0, 0}, {3, 2}, {1, 3}, {2, 1}},
+    {{2, 3}, {0, 0}, {3, 0}, {0, 2}},
+    {{3, 1}, {0, 3}, {0, 0}, {1, 0}},
+    {{1, 2}, {2, 0}, {0, 1}, {0, 0}},
+};
+
+static inline const double *pt(const as_del3 *d, int32_t v) { return d->xyz + 3 * (size_t)v; }
+
+static inline int same_point(const double *a, const double *b) {
+    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+}
+
+/* ---- inlined filters ----------------------------------------------------------------------
+ * Stage 0 of as_orient3d and as_insphere (predicates.c), inlined: the same expressions and
+ * the same bound constants, whose proof is in predicates.c (semi-static filter: the plain
+ * determinant of the differences against c * max|dx| * max|dy| * max|dz| (* the sum of
+ * their squares for insphere)). A call into predicates.c costs as much as the filter
+ * itself; the star triangulations make thousands of these tests. When the filter cannot
+ * decide we call the adaptive predicate, which starts over. */
+#define DEL3_EPS (DBL_EPSILON * 0.5)
+#define DEL3_O3D_STATIC ((42.0 + 1100.0 * DEL3_EPS) * DEL3_EPS)
+#define DEL3_ISP_STATIC ((384.0 + 16384.0 * DEL3_EPS) * DEL3_EPS)
+
+static inline double max3(double a, double b, double c) {
+    double m = a > b ? a : b;
+    return m > c ? m : c;
+}
+
+static inline double orient(const double *a, const double *b, const double *c,
+                            const double *d) {
+    double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
+    double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
+    double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
+    double bc = bdx * cdy - cdx * bdy;
+    double ca = cdx * ady - adx * cdy;
+    double ab = adx * bdy - bdx * ady;
+    double det = adz * bc + bdz * ca + cdz * ab;
+    double mx = max3(fabs(adx), fabs(bdx), fabs(cdx));
+    double my = max3(fabs(ady), fabs(bdy), fabs(cdy));
+    double mz = max3(fabs(adz), fabs(bdz), fabs(cdz));
+    double bound = DEL3_O3D_STATIC * (mx * my * mz);
+    if (det > bound || -det > bound) return det;
+    return as_orient3d(a, b, c, d);
+}
+
+static inline int insphere_sos(const double *a, const double *b, const double *c,
+                               const double *d, const double *e, int64_t ia, int64_t ib,
+                               int64_t ic, int64_t id, int64_t ie) {
+    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
+    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
+    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
+    double ab = aex * bey - bex * aey;
+    double bc = bex * cey - cex * bey;
+    double cd = cex * dey - dex * cey;
+    double da = dex * aey - aex * dey;
+    double ac = aex * cey - cex * aey;
+    double bd = bex * dey - dex * bey;
+    double abc = aez * bc - bez * ac + cez * ab;
+    double bcd = bez * cd - cez * bd + dez * bc;
+    double cda = cez * da + dez * ac + aez * cd;
+    double dab = dez * ab + aez * bd + bez * da;
+    double alift = aex * aex + aey * aey + aez * aez;
+    double blift = bex * bex + bey * bey + bez * bez;
+    double clift = cex * cex + cey * cey + cez * cez;
+    double dlift = dex * dex + dey * dey + dez * dez;
+    double det = (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
+    double mx = max3(fabs(aex), fabs(bex), fabs(cex)), my = max3(fabs(aey), fabs(bey), fabs(cey));
+    double mz = max3(fabs(aez), fabs(bez), fabs(cez));
+    mx = mx > fabs(dex) ? mx : fabs(dex);
+    my = my > fabs(dey) ? my : fabs(dey);
+    mz = mz > fabs(dez) ? mz : fabs(dez);
+    double bound = DEL3_ISP_STATIC * ((mx * my * mz) * ((mx * mx + my * my) + mz * mz));
+    if (det > bound) return 1;
+    if (-det > bound) return -1;
+    return as_insphere_sos(a, b, c, d, e, ia, ib, ic, id, ie);
+}
+
+static inline int finite3(const double *p) {
+    return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+}
+
+static uint64_t mix64(uint64_t z) {
+    z += 0x9e3779b97f4a7c15ULL;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+static inline uint64_t xorshift(as_del3 *d) {
+    uint64_t x = d->rng;
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    d->rng = x;
+    return x;
+}
+
+/* ---- buffers and growth ------------------------------------------------------------------ */
+
+void as_del3_buf_free(anistar_context *ctx, as_del3_buf *b) {
+    as_free(ctx, b->a, b->cap * sizeof *b->a);
+    b->a = NULL;
+    b->n = b->cap = 0;
+}
+
+static int buf_reserve(anistar_context *ctx, as_del3_buf *b, size_t need) {
+    void *p = b->a;
+    if (as_grow(ctx, &p, &b->cap, need, sizeof *b->a)) return -1;
+    b->a = p;
+    return 0;
+}
+
+static size_t grown_cap(size_t cap, size_t need) {
+    size_t c = cap ? cap : 16;
+    while (c < need) c = c > SIZE_MAX / 4 ? need : 2 * c;
+    return c;
+}
+
+enum { VBYTES = 3 * sizeof(double) + sizeof(int64_t) + sizeof(int32_t) };
+enum { TBYTES = 9 * sizeof(int32_t) };
+
+static int grow_vertices(as_del3 *d, size_t need) {
+    if (need <= d->cap_v) return 0;
+    size_t cap = grown_cap(d->cap_v, need), bytes;
+    if (as_mul_size(cap, VBYTES, &bytes)) return -1;
+    char *blk = as_alloc(d->ctx, bytes);
+    if (!blk) return -1;
+    double *xyz = (double *)(void *)blk;
+    int64_t *gid = (int64_t *)(void *)(blk + cap * 3 * sizeof(double));
+    int32_t *vtet = (int32_t *)(void *)(blk + cap * (3 * sizeof(double) + sizeof(int64_t)));
+    size_t n = (size_t)d->nv;
+    if (n) {
+        memcpy(xyz, d->xyz, 3 * n * sizeof *xyz);
+        memcpy(gid, d->gid, n * sizeof *gid);
+        memcpy(vtet, d->vtet, n * sizeof *vtet);
+    }
+    as_free(d->ctx, d->xyz, d->cap_v * VBYTES);
+    d->xyz = xyz;
+    d->gid = gid;
+    d->vtet = vtet;
+    d->cap_v = cap;
+    return 0;
+}
+
+static int grow_tets(as_del3 *d, size_t need) {
+    if (need <= d->cap_t) return 0;
+    if (need > MAX_TETS) return -1;
+    size_t cap = grown_cap(d->cap_t, need), bytes;
+    if (cap > MAX_TETS) cap = MAX_TETS;
+    if (as_mul_size(cap, TBYTES, &bytes)) return -1;
+    int32_t *blk = as_alloc(d->ctx, bytes);
+    if (!blk) return -1;
+    size_t n = (size_t)d->nt;
+    if (n) {
+        memcpy(blk, d->tet_v, 4 * n * sizeof *blk);
+        memcpy(blk + 4 * cap, d->tet_adj, 4 * n * sizeof *blk);
+        memcpy(blk + 8 * cap, d->next, n * sizeof *blk);
+    }
+    as_free(d->ctx, d->tet_v, d->cap_t * TBYTES);
+    d->tet_v = blk;
+    d->tet_adj = blk + 4 * cap;
+    d->next = blk + 8 * cap;
+    d->cap_t = cap;
+    return 0;
+}
+
+static int32_t alloc_tet(as_del3 *d) {
+    int32_t t;
+    if (d->free_head >= 0) {
+        t = d->free_head;
+        d->free_head = d->next[t];
+    } else {
+        t = d->nt++;
+    }
+    d->next[t] = NEXT_NONE;
+    d->nlive++;
+    return t;
+}
+
+/* ---- lifetime ------------------------------------------------------------------------------ */
+
+static void clear_tets(as_del3 *d) {
+    d->nt = 0;
+    d->nlive = 0;
+    d->free_head = -1;
+    d->dim3 = 0;
+    d->hint = -1;
+    d->conflict_head = NEXT_END;
+    d->nconflict = 0;
+    d->nbf = 0;
+}
+
+void as_del3_init(as_del3 *d, anistar_context *ctx) {
+    memset(d, 0, sizeof *d);
+    d->ctx = ctx;
+    d->boot[0] = d->boot[1] = d->boot[2] = -1;
+    d->seed = 0;
+    d->rng = mix64(0) | 1u;
+    clear_tets(d);
+}
+
+void as_del3_destroy(as_del3 *d) {
+    anistar_context *ctx = d->ctx;
+    as_free(ctx, d->xyz, d->cap_v * VBYTES);
+    as_free(ctx, d->tet_v, d->cap_t * TBYTES);
+    as_free(ctx, d->phash, d->cap_phash * sizeof *d->phash);
+    as_free(ctx, d->stack, d->cap_stack * sizeof *d->stack);
+    as_free(ctx, d->bf, d->cap_bf * sizeof *d->bf);
+    as_free(ctx, d->etab, d->cap_etab * sizeof *d->etab);
+    as_free(ctx, d->etouch, d->cap_etouch * sizeof *d->etouch);
+    as_del3_buf_free(ctx, &d->removed);
+    as_del3_buf_free(ctx, &d->created);
+    as_del3_init(d, ctx);
+}
+
+static void phash_clear(as_del3 *d) {
+    for (size_t i = 0; i < d->cap_phash; i++) d->phash[i] = -1;
+}
+
+void as_del3_reset(as_del3 *d) {
+    d->nv = 0;
+    clear_tets(d);
+    d->boot[0] = d->boot[1] = d->boot[2] = -1;
+    phash_clear(d);
+    d->rng = mix64(d->seed) | 1u;
+    d->removed.n = d->created.n = 0;
+    d->rebuilt = 0;
+    memset(&d->stats, 0, sizeof d->stats);
+}
+
+void as_del3_set_seed(as_del3 *d, uint64_t seed) {
+    d->seed = seed;
+    d->rng = mix64(seed) | 1u;
+}
+
+anistar_status as_del3_reserve(as_del3 *d, int32_t nv, int32_t nt) {
+    if (nv < 0 || nt < 0) return as_fail(d->ctx, ANISTAR_EINVAL, "del3: negative reserve");
+    if (grow_vertices(d, (size_t)nv) || grow_tets(d, (size_t)nt))
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory reserving %d vertices, %d tets",
+                       (int)nv, (int)nt);
+    return ANISTAR_OK;
+}
+
+void as_del3_count(const as_del3 *d, int32_t *finite_tets, int32_t *infinite_tets) {
+    int32_t nf = 0, ni = 0;
+    for (int32_t t = 0; t < d->nt; t++) {
+        if (d->tet_v[4 * (size_t)t] == AS_DEL3_DEAD) continue;
+        if (as_del3_is_infinite(d, t))
+            ni++;
+        else
+            nf++;
+    }
+    if (finite_tets) *finite_tets = nf;
+    if (infinite_tets) *infinite_tets = ni;
+}
+
+/* ---- predicates on tets --------------------------------------------------------------------- */
+
+static inline int inf_slot(const int32_t *tv) {
+    return tv[0] == AS_DEL3_INF ? 0 : tv[1] == AS_DEL3_INF ? 1 : tv[2] == AS_DEL3_INF ? 2 : 3;
+}
+
+/* Is live tet t in conflict with p (global id g)? The rule at the top of this file. */
+static int in_conflict(const as_del3 *d, int32_t t, const double *p, int64_t g) {
+    const int32_t *tv = d->tet_v + 4 * (size_t)t;
+    if ((tv[0] | tv[1] | tv[2] | tv[3]) >= 0) {
+        return insphere_sos(pt(d, tv[0]), pt(d, tv[1]), pt(d, tv[2]), pt(d, tv[3]), p,
+                            d->gid[tv[0]], d->gid[tv[1]], d->gid[tv[2]], d->gid[tv[3]], g) > 0;
+    }
+    int k = inf_slot(tv);
+    const double *q[4];
+    for (int i = 0; i < 4; i++) q[i] = i == k ? p : pt(d, tv[i]);
+    double o = orient(q[0], q[1], q[2], q[3]);
+    if (o > 0) return 1;
+    if (o < 0) return 0;
+    const int32_t *fv = d->tet_v + 4 * (size_t)(d->tet_adj[4 * (size_t)t + (size_t)k] >> 2);
+    return insphere_sos(pt(d, fv[0]), pt(d, fv[1]), pt(d, fv[2]), pt(d, fv[3]), p,
+                        d->gid[fv[0]], d->gid[fv[1]], d->gid[fv[2]], d->gid[fv[3]], g) > 0;
+}
+
+/* ---- walk and conflict zone ------------------------------------------------------------------ */
+
+static int32_t start_tet(const as_del3 *d, int32_t hint) {
+    if (as_del3_is_live(d, hint)) return hint;
+    if (as_del3_is_live(d, d->hint)) return d->hint;
+    for (int32_t t = d->nt - 1; t >= 0; t--)
+        if (d->tet_v[4 * (size_t)t] != AS_DEL3_DEAD) return t;
+    return -1;
+}
+
+/*
+ * Remembering stochastic walk from live tet t toward p.
+ * Returns a finite tet whose closure contains p, or an infinite tet whose hull face p
+ * strictly sees.
+ * design: in tet t, test the faces in a random cyclic order (d->rng), skipping the face
+ * we came through; cross the first face that has p strictly on its other side. The
+ * triangulation is regular, so the walk cannot cycle; the random order shortens it.
+ */
+static int32_t walk(as_del3 *d, const double *p, int32_t t) {
+    const int32_t *tv = d->tet_v + 4 * (size_t)t;
+    if ((tv[0] | tv[1] | tv[2] | tv[3]) < 0)
+        t = d->tet_adj[4 * (size_t)t + (size_t)inf_slot(tv)] >> 2;
+    int32_t prev = -1;
+    uint64_t steps = 0;
+    for (;;) {
+        tv = d->tet_v + 4 * (size_t)t;
+        const int32_t *ta = d->tet_adj + 4 * (size_t)t;
+        const double *q[4] = {pt(d, tv[0]), pt(d, tv[1]), pt(d, tv[2]), pt(d, tv[3])};
+        unsigned r = (unsigned)(xorshift(d) >> 40);
+        int32_t to = -1;
+        for (unsigned k = 0; k < 4; k++) {
+            unsigned i = (r + k) & 3u;
+            int32_t n = ta[i] >> 2;
+            if (n == prev) continue;
+            const double *save = q[i];
+            q[i] = p;
+            double o = orient(q[0], q[1], q[2], q[3]);
+            q[i] = save;
+            if (o < 0) {
+                to = n;
+                break;
+            }
+        }
+        if (to < 0) break;
+        prev = t;
+        t = to;
+        steps++;
+        tv = d->tet_v + 4 * (size_t)t;
+        if ((tv[0] | tv[1] | tv[2] | tv[3]) < 0) break;
+    }
+    d->stats.walk_steps += steps;
+    return t;
+}
+
+/* Unmark everything the last search marked. */
+static void clear_marks(as_del3 *d) {
+    for (int32_t t = d->conflict_head; t != NEXT_END;) {
+        int32_t nx = d->next[t];
+        d->next[t] = NEXT_NONE;
+        t = nx;
+    }
+    d->conflict_head = NEXT_END;
+    d->nconflict = 0;
+    for (size_t k = 0; k < d->nbf; k++) d->next[d->bf[k].out >> 2] = NEXT_NONE;
+    d->nbf = 0;
+}
+
+static int reserve_stack(as_del3 *d, size_t need) {
+    void *p = d->stack;
+    if (as_grow(d->ctx, &p, &d->cap_stack, need, sizeof *d->stack)) return -1;
+    d->stack = p;
+    return 0;
+}
+
+static int reserve_bf(as_del3 *d, size_t need) {
+    void *p = d->bf;
+    if (as_grow(d->ctx, &p, &d->cap_bf, need, sizeof *d->bf)) return -1;
+    d->bf = p;
+    return 0;
+}
+
+/*
+ * Locate p (global id g) and collect its conflict zone: the conflict list through next[]
+ * (head d->conflict_head, d->nconflict tets), the cavity boundary faces d->bf[0..nbf)
+ * (with newv at the new point's slot); the outside neighbours are marked NEXT_OUT.
+ * Returns ANISTAR_OK (marks set: the caller applies the cavity or calls clear_marks),
+ * AS_DEL3_DUPLICATE (*dupv; nothing marked) or ANISTAR_ENOMEM (nothing marked).
+ * design: walk from the hint; the tet found is in conflict without a test (see the top of
+ * the file); grow the zone by adjacency with an explicit stack, testing each unvisited
+ * neighbour once; a face toward a non-conflict tet is a boundary face.
+ */
+static int search(as_del3 *d, const double *p, int64_t g, int32_t hint, int32_t newv,
+                  int32_t *dupv) {
+    int32_t t = walk(d, p, start_tet(d, hint));
+    const int32_t *tv = d->tet_v + 4 * (size_t)t;
+    if ((tv[0] | tv[1] | tv[2] | tv[3]) >= 0) {
+        for (int i = 0; i < 4; i++)
+            if (same_point(pt(d, tv[i]), p)) {
+                *dupv = tv[i];
+                return AS_DEL3_DUPLICATE;
+            }
+    }
+    if ((d->cap_stack < 64 && reserve_stack(d, 64)) || (d->cap_bf < 64 && reserve_bf(d, 64)))
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (conflict zone)");
+    d->conflict_head = t;
+    d->next[t] = NEXT_END;
+    d->nconflict = 1;
+    d->nbf = 0;
+    size_t sp = 0;
+    d->stack[sp++] = t;
+    while (sp > 0) {
+        int32_t c = d->stack[--sp];
+        if ((sp + 4 > d->cap_stack && reserve_stack(d, sp + 4)) ||
+            (d->nbf + 4 > d->cap_bf && reserve_bf(d, d->nbf + 4))) {
+            clear_marks(d);
+            return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (conflict zone)");
+        }
+        const int32_t *cv = d->tet_v + 4 * (size_t)c;
+        const int32_t *ca = d->tet_adj + 4 * (size_t)c;
+        for (int i = 0; i < 4; i++) {
+            int32_t a = ca[i];
+            int32_t n = a >> 2;
+            int32_t nx = d->next[n];
+            if (nx == NEXT_NONE) {
+                if (in_conflict(d, n, p, g)) {
+                    d->next[n] = d->conflict_head;
+                    d->conflict_head = n;
+                    d->nconflict++;
+                    d->stack[sp++] = n;
+                    continue;
+                }
+                d->next[n] = NEXT_OUT;
+            } else if (nx != NEXT_OUT) {
+                continue; /* in conflict: an inner face */
+            }
+            as_del3_bface *b = &d->bf[d->nbf++];
+            b->v[0] = cv[0];
+            b->v[1] = cv[1];
+            b->v[2] = cv[2];
+            b->v[3] = cv[3];
+            b->v[i] = newv;
+            b->out = a;
+            b->slot = i;
+        }
+    }
+    return ANISTAR_OK;
+}
+
+/* ---- cavity --------------------------------------------------------------------------------- */
+
+static inline uint32_t edge_hash(int32_t x, int32_t y) {
+    uint32_t h = (uint32_t)x * 0x9e3779b1u ^ ((uint32_t)y * 0x85ebca77u);
+    return h ^ (h >> 15);
+}
+
+/* Make room for applying the cavity of the last search. 0 or -1 (nothing changed). */
+static int reserve_cavity(as_del3 *d) {
+    size_t nb = d->nbf;
+    if ((size_t)d->nt + nb > MAX_TETS) return -1;
+    if (grow_tets(d, (size_t)d->nt + nb)) return -1;
+    if (buf_reserve(d->ctx, &d->removed, (size_t)d->nconflict) ||
+        buf_reserve(d->ctx, &d->created, nb))
+        return -1;
+    size_t esz = 512;
+    while (esz < 3 * nb) esz *= 2;
+    if (esz > d->cap_etab) {
+        as_del3_edge *e = as_alloc_array(d->ctx, esz, sizeof *e);
+        if (!e) return -1;
+        for (size_t i = 0; i < esz; i++) e[i].a = EDGE_EMPTY;
+        if (d->cap_etab) d->stats.big_cavities++;
+        as_free(d->ctx, d->etab, d->cap_etab * sizeof *d->etab);
+        d->etab = e;
+        d->cap_etab = esz;
+    }
+    if (2 * nb > d->cap_etouch) {
+        void *p = d->etouch;
+        if (as_grow(d->ctx, &p, &d->cap_etouch, 2 * nb, sizeof *d->etouch)) return -1;
+        d->etouch = p;
+    }
+    return 0;
+}
+
+/*
+ * Replace the conflict zone of the last search by the cone of its boundary faces to the
+ * new point. Cannot fail (reserve_cavity came first).
+ * design: record and free the conflict tets (LIFO free list: the new tets reuse their
+ * slots); one new tet per boundary face (the old tet with the new point in the boundary
+ * face's opposite slot: orientation inherited), glued to the outside; glue the new tets to
+ * each other through a table keyed on the oriented edge that each face through the new
+ * point holds (the partner face holds the reversed edge).
+ */
+static void cavity_apply(as_del3 *d) {
+    int32_t *restrict tet_v = d->tet_v;
+    int32_t *restrict adj = d->tet_adj;
+    int32_t *restrict nxt = d->next;
+    int32_t *restrict vtet = d->vtet;
+    int32_t *restrict removed = d->removed.a;
+    int32_t *restrict created = d->created.a;
+    const as_del3_bface *restrict bf = d->bf;
+    int32_t free_head = d->free_head, nt = d->nt;
+    size_t nr = 0;
+    for (int32_t t = d->conflict_head; t != NEXT_END;) { /* free the conflict tets (LIFO) */
+        int32_t nx = nxt[t];
+        removed[nr++] = t;
+        tet_v[4 * (size_t)t] = AS_DEL3_DEAD;
+        nxt[t] = free_head;
+        free_head = t;
+        t = nx;
+    }
+    size_t nb = d->nbf;
+    for (size_t k = 0; k < nb; k++) {
+        const as_del3_bface *b = &bf[k];
+        int32_t n;
+        if (free_head >= 0) {
+            n = free_head;
+            free_head = nxt[n];
+        } else {
+            n = nt++;
+        }
+        nxt[n] = NEXT_NONE;
+        int32_t *tv = tet_v + 4 * (size_t)n;
+        tv[0] = b->v[0];
+        tv[1] = b->v[1];
+        tv[2] = b->v[2];
+        tv[3] = b->v[3];
+        adj[4 * (size_t)n + (size_t)b->slot] = b->out;
+        adj[b->out] = 4 * n + b->slot;
+        nxt[b->out >> 2] = NEXT_NONE;
+        for (int i = 0; i < 4; i++)
+            if (tv[i] >= 0) vtet[tv[i]] = n;
+        created[k] = n;
+    }
+    d->free_head = free_head;
+    d->nt = nt;
+    d->nlive += (int32_t)nb - (int32_t)nr;
+    d->removed.n = nr;
+    d->created.n = nb;
+    d->conflict_head = NEXT_END;
+
+    uint32_t mask = (uint32_t)d->cap_etab - 1;
+    as_del3_edge *restrict et = d->etab;
+    int32_t *restrict etouch = d->etouch;
+    size_t ntouch = 0;
+    for (size_t k = 0; k < nb; k++) {
+        int32_t n = created[k];
+        int s = bf[k].slot;
+        const int32_t *tv = tet_v + 4 * (size_t)n;
+        for (int j = 0; j < 4; j++) {
+            if (j == s) continue;
+            int32_t x = tv[edge_xy[s][j][0]], y = tv[edge_xy[s][j][1]];
+            /* The partner stored (y, x) under the hash of (y, x). */
+            uint32_t h = edge_hash(y, x) & mask;
+            for (;;) {
+                as_del3_edge *e = &et[h];
+                if (e->a == EDGE_EMPTY) break;
+                if (e->a == y && e->b == x) {
+                    int32_t link = e->link;
+                    adj[4 * (size_t)n + (size_t)j] = link;
+                    adj[link] = 4 * n + j;
+                    e->a = EDGE_USED;
+                    goto glued;
+                }
+                h = (h + 1) & mask;
+            }
+            h = edge_hash(x, y) & mask;
+            while (et[h].a != EDGE_EMPTY) h = (h + 1) & mask;
+            et[h].a = x;
+            et[h].b = y;
+            et[h].link = 4 * n + j;
+            etouch[ntouch++] = (int32_t)h;
+        glued:;
+        }
+    }
+    for (size_t k = 0; k < ntouch; k++) et[etouch[k]].a = EDGE_EMPTY;
+    d->nbf = 0;
+    d->nconflict = 0;
+    d->hint = created[0];
+    d->rebuilt = 0;
+    d->stats.conflict_tets += nr;
+    d->stats.created_tets += nb;
+}
+
+/* Insert the point p (global id g) as vertex newv: newv == d->nv for a new vertex (stored
+ * here once nothing can fail; vertex capacity must be reserved), or an already stored
+ * pending vertex. Returns ANISTAR_OK, AS_DEL3_DUPLICATE (*dupv) or ANISTAR_ENOMEM; on any
+ * failure the triangulation is unchanged. */
+static int insert_at(as_del3 *d, const double *p, int64_t g, int32_t newv, int32_t *dupv) {
+    int r = search(d, p, g, -1, newv, dupv);
+    if (r != ANISTAR_OK) return r;
+    if (reserve_cavity(d)) {
+        clear_marks(d);
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (cavity of %zu faces)",
+                       d->nbf);
+    }
+    if (newv == d->nv) {
+        double *x = d->xyz + 3 * (size_t)newv;
+        x[0] = p[0];
+        x[1] = p[1];
+        x[2] = p[2];
+        d->gid[newv] = g;
+        d->nv++;
+    }
+    cavity_apply(d);
+    d->stats.inserted++;
+    return ANISTAR_OK;
+}
+
+/* ---- the pending phase (fewer than 4 affinely independent points) ------------------------ */
+
+static uint32_t point_hash(const double *p) {
+    uint64_t h = 0;
+    for (int i = 0; i < 3; i++) {
+        double x = p[i] + 0.0; /* -0 -> +0: equal points hash equally */
+        uint64_t u;
+        memcpy(&u, &x, sizeof u);
+        h = mix64(h ^ u);
+    }
+    return (uint32_t)(h >> 32);
+}
+
+static void phash_add(as_del3 *d, int32_t v) {
+    size_t mask = d->cap_phash - 1, h = point_hash(pt(d, v)) & mask;
+    while (d->phash[h] >= 0) h = (h + 1) & mask;
+    d->phash[h] = v;
+}
+
+static int32_t phash_find(const as_del3 *d, const double *p) {
+    if (d->cap_phash == 0) return -1;
+    size_t mask = d->cap_phash - 1, h = point_hash(p) & mask;
+    for (; d->phash[h] >= 0; h = (h + 1) & mask)
+        if (same_point(pt(d, d->phash[h]), p)) return d->phash[h];
+    return -1;
+}
+
+/* Room for n pending vertices (load <= 1/2). */
+static int phash_reserve(as_del3 *d, size_t n) {
+    if (2 * n <= d->cap_phash) return 0;
+    size_t cap = 16;
+    while (cap < 2 * n) cap *= 2;
+    int32_t *h = as_alloc_array(d->ctx, cap, sizeof *h);
+    if (!h) return -1;
+    as_free(d->ctx, d->phash, d->cap_phash * sizeof *d->phash);
+    d->phash = h;
+    d->cap_phash = cap;
+    phash_clear(d);
+    for (int32_t v = 0; v < d->nv; v++) phash_add(d, v);
+    return 0;
+}
+
+/* Exact: are a, b, c collinear? (orient2d of the three coordinate projections, each an
+ * exact orient3d with the fourth point (0, 0, 1).) */
+static int collinear(const double *a, const double *b, const double *c) {
+    static const double up[3] = {0, 0, 1};
+    for (int k = 0; k < 3; k++) {
+        int i = k, j = (k + 1) % 3;
+        double A[3] = {a[i], a[j], 0}, B[3] = {b[i], b[j], 0}, C[3] = {c[i], c[j], 0};
+        if (as_orient3d(A, B, C, up) != 0) return 0;
+    }
+    return 1;
+}
+
+/* The first tets: t0 = (v0, v1, v2, v3) at slot 0 and, at slot 1 + m, the infinite tet
+ * I_m = t0 with v_m replaced by inf and the slots (m+1)&3, (m+2)&3 swapped. boot_slot(m, i):
+ * the slot of t0's vertex i in I_m (and, the swap being an involution, the t0 index of the
+ * vertex at slot i of I_m). */
+static inline int boot_slot(int m, int i) {
+    int s1 = (m + 1) & 3, s2 = (m + 2) & 3;
+    return i == s1 ? s2 : i == s2 ? s1 : i;
+}
+
+/*
+ * The points became 3D with vertex v3: build the first tet from d->boot and v3, its four
+ * infinite tets, then insert every other pending vertex (in index order). Returns
+ * ANISTAR_OK or ANISTAR_ENOMEM (then no tet exists and d->dim3 == 0).
+ */
+static anistar_status bootstrap(as_del3 *d, int32_t v3) {
+    int32_t a = d->boot[0], b = d->boot[1], c = d->boot[2];
+    if (as_orient3d(pt(d, a), pt(d, b), pt(d, c), pt(d, v3)) < 0) {
+        int32_t s = a;
+        a = b;
+        b = s;
+    }
+    if (grow_tets(d, 5)) goto nomem;
+    clear_tets(d);
+    int32_t t0 = alloc_tet(d);
+    int32_t *tv = d->tet_v + 4 * (size_t)t0;
+    tv[0] = a;
+    tv[1] = b;
+    tv[2] = c;
+    tv[3] = v3;
+    for (int i = 0; i < 4; i++) {
+        int32_t t = alloc_tet(d);
+        int32_t *iv = d->tet_v + 4 * (size_t)t;
+        const int32_t *v0 = d->tet_v + 4 * (size_t)t0;
+        /* an odd permutation of the finite slots: the face of t0 is seen reversed */
+        for (int k = 0; k < 4; k++) iv[k] = v0[boot_slot(i, k)];
+        iv[i] = AS_DEL3_INF;
+    }
+    /* t0's face m is I_m's face m; I_m's face k (k != m) holds inf and t0 minus v_m and
+     * the vertex i = boot_slot(m, k): it is I_i's face opposite v_m. */
+    for (int m = 0; m < 4; m++) {
+        int32_t im = 1 + m;
+        d->tet_adj[4 * (size_t)t0 + (size_t)m] = 4 * im + m;
+        d->tet_adj[4 * (size_t)im + (size_t)m] = 4 * t0 + m;
+        for (int k = 0; k < 4; k++) {
+            if (k == m) continue;
+            int i = boot_slot(m, k);
+            d->tet_adj[4 * (size_t)im + (size_t)k] = 4 * (1 + i) + boot_slot(i, m);
+        }
+    }
+    d->dim3 = 1;
+    d->vtet[a] = d->vtet[b] = d->vtet[c] = d->vtet[v3] = t0;
+    d->hint = t0;
+    for (int32_t u = 0; u < d->nv; u++) {
+        if (u == a || u == b || u == c || u == v3) continue;
+        int32_t dup;
+        if (insert_at(d, pt(d, u), d->gid[u], u, &dup) != ANISTAR_OK) goto nomem;
+    }
+    if (buf_reserve(d->ctx, &d->created, (size_t)d->nlive)) goto nomem;
+    d->created.n = 0;
+    for (int32_t t = 0; t < d->nt; t++)
+        if (d->tet_v[4 * (size_t)t] != AS_DEL3_DEAD) d->created.a[d->created.n++] = t;
+    d->removed.n = 0;
+    d->rebuilt = 1;
+    phash_clear(d);
+    return ANISTAR_OK;
+nomem:
+    clear_tets(d);
+    return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory building the first tets");
+}
+
+static int pending_insert(as_del3 *d, const double *p, int64_t g, int32_t *vertex) {
+    int32_t dup = phash_find(d, p);
+    if (dup >= 0) {
+        *vertex = dup;
+        d->stats.duplicates++;
+        return AS_DEL3_DUPLICATE;
+    }
+    if (grow_vertices(d, (size_t)d->nv + 1) || phash_reserve(d, (size_t)d->nv + 1))
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (vertex %d)", (int)d->nv);
+    int32_t v = d->nv;
+    double *x = d->xyz + 3 * (size_t)v;
+    x[0] = p[0];
+    x[1] = p[1];
+    x[2] = p[2];
+    d->gid[v] = g;
+    d->nv++;
+    phash_add(d, v);
+    d->removed.n = d->created.n = 0;
+    d->rebuilt = 0;
+    *vertex = v;
+    d->stats.inserted++;
+    if (d->boot[0] < 0) {
+        d->boot[0] = v;
+    } else if (d->boot[1] < 0) {
+        d->boot[1] = v; /* distinct from boot[0]: not a duplicate */
+    } else if (d->boot[2] < 0) {
+        if (!collinear(pt(d, d->boot[0]), pt(d, d->boot[1]), p)) d->boot[2] = v;
+    } else if (as_orient3d(pt(d, d->boot[0]), pt(d, d->boot[1]), pt(d, d->boot[2]), p) != 0) {
+        anistar_status st = bootstrap(d, v);
+        if (st != ANISTAR_OK) {
+            d->nv--;
+            d->stats.inserted--;
+            phash_clear(d);
+            for (int32_t u = 0; u < d->nv; u++) phash_add(d, u);
+            *vertex = -1;
+            return st;
+        }
+    }
+    return ANISTAR_OK;
+}
+
+/* ---- insertion API -------------------------------------------------------------------------- */
+
+#ifdef AS_DEL3_DEBUG
+static int debug_check(as_del3 *d) {
+    if (as_del3_check_combinatorics(d) != ANISTAR_OK) return ANISTAR_EINTERNAL;
+    if (as_del3_check_delaunay(d) != ANISTAR_OK) return ANISTAR_EINTERNAL;
+    return ANISTAR_OK;
+}
+#endif
+
+int as_del3_insert(as_del3 *d, const double p[3], int64_t gid, int32_t *vertex) {
+    int32_t vdummy;
+    if (!vertex) vertex = &vdummy;
+    *vertex = -1;
+    if (!finite3(p))
+        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: point (%g, %g, %g) is not finite", p[0],
+                       p[1], p[2]);
+    if (d->nv >= MAX_VERTS)
+        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: too many vertices (%d)", (int)d->nv);
+    int r;
+    if (!d->dim3) {
+        r = pending_insert(d, p, gid, vertex);
+    } else {
+        if (grow_vertices(d, (size_t)d->nv + 1))
+            return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (vertex %d)",
+                           (int)d->nv);
+        int32_t dup = -1;
+        r = insert_at(d, p, gid, d->nv, &dup);
+        if (r == AS_DEL3_DUPLICATE) {
+            *vertex = dup;
+            d->stats.duplicates++;
+        } else if (r == ANISTAR_OK) {
+            *vertex = d->nv - 1;
+        }
+    }
+#ifdef AS_DEL3_DEBUG
+    if (r == ANISTAR_OK && debug_check(d) != ANISTAR_OK) return ANISTAR_EINTERNAL;
+#endif
+    return r;
+}
+
+int as_del3_insert_frame(as_del3 *d, const as_metric_frame *mf, const double q[3],
+                         int64_t gid, int32_t *vertex) {
+    if (!mf) return as_del3_insert(d, q, gid, vertex);
+    double y[3];
+    as_metric_apply(mf, q, y);
+    return as_del3_insert(d, y, gid, vertex);
+}
+
+anistar_status as_del3_insert_points(as_del3 *d, const double *pts, const int64_t *gids,
+                                     int32_t n, const as_metric_frame *mf, int32_t *vertex,
+                                     int32_t *ndup) {
+    if (ndup) *ndup = 0;
+    if (n < 0) return as_fail(d->ctx, ANISTAR_EINVAL, "del3: negative point count");
+    if (n == 0) return ANISTAR_OK;
+    for (int32_t i = 0; i < n; i++)
+        if (!finite3(pts + 3 * (size_t)i))
+            return as_fail(d->ctx, ANISTAR_EINVAL, "del3: point %d is not finite", (int)i);
+    if ((int64_t)d->nv + n > MAX_VERTS)
+        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: too many vertices");
+    if (vertex)
+        for (int32_t i = 0; i < n; i++) vertex[i] = -1;
+    size_t nn = (size_t)n;
+    double *ys = NULL;
+    int32_t *order = NULL;
+    anistar_status st = ANISTAR_OK;
+    const double *y = pts;
+    if (mf) {
+        ys = as_alloc_array(d->ctx, 3 * nn, sizeof *ys);
+        if (!ys) goto nomem;
+        for (size_t i = 0; i < nn; i++) as_metric_apply(mf, pts + 3 * i, ys + 3 * i);
+        y = ys;
+    }
+    if (n > 64) {
+        order = as_alloc_array(d->ctx, nn, sizeof *order);
+        if (!order) goto nomem;
+        st = as_sort_brio(d->ctx, y, n, d->seed, order);
+        if (st != ANISTAR_OK) goto done;
+        /* about 6.5 tets per point for uniform points; more is grown on demand */
+        size_t want = 7 * ((size_t)d->nv + nn) + 64;
+        if (want > MAX_TETS) want = MAX_TETS;
+        if (grow_vertices(d, (size_t)d->nv + nn) || grow_tets(d, want)) goto nomem;
+    }
+    int32_t dups = 0;
+    for (int32_t k = 0; k < n; k++) {
+        int32_t i = order ? order[k] : k;
+        int32_t v;
+        int r = as_del3_insert(d, y + 3 * (size_t)i, gids ? gids[i] : i, &v);
+        if (r == AS_DEL3_DUPLICATE) {
+            dups++;
+        } else if (r != ANISTAR_OK) {
+            st = (anistar_status)r;
+            goto done;
+        }
+        if (vertex) vertex[i] = v;
+    }
+    if (ndup) *ndup = dups;
+    goto done;
+nomem:
+    st = as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory inserting %d points", (int)n);
+done:
+    as_free(d->ctx, ys, 3 * nn * sizeof *ys);
+    as_free(d->ctx, order, nn * sizeof *order);
+    return st;
+}
+
+/* ---- queries -------------------------------------------------------------------------------- */
+
+int as_del3_conflict_zone(as_del3 *d, const double p[3], int64_t gid, int32_t hint,
+                          as_del3_buf *tets, int32_t *dupv) {
+    int32_t vdummy;
+    if (!dupv) dupv = &vdummy;
+    *dupv = -1;
+    tets->n = 0;
+    if (!finite3(p)) return as_fail(d->ctx, ANISTAR_EINVAL, "del3: point is not finite");
+    if (!d->dim3) return as_fail(d->ctx, ANISTAR_EINVAL, "del3: the points are not 3D yet");
+    uint64_t rng = d->rng;
+    as_del3_stats stats = d->stats;
+    int r = search(d, p, gid, hint, -1, dupv);
+    d->rng = rng; /* a query leaves no trace */
+    d->stats = stats;
+    if (r != ANISTAR_OK) return r;
+    if (buf_reserve(d->ctx, tets, (size_t)d->nconflict)) {
+        clear_marks(d);
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (conflict zone)");
+    }
+    for (int32_t t = d->conflict_head; t != NEXT_END; t = d->next[t]) tets->a[tets->n++] = t;
+    clear_marks(d);
+    return ANISTAR_OK;
+}
+
+int as_del3_in_sphere(const as_del3 *d, int32_t t, const double p[3], int64_t gid) {
+    const int32_t *tv = d->tet_v + 4 * (size_t)t;
+    for (int i = 0; i < 4; i++)
+        if (tv[i] >= 0 && same_point(pt(d, tv[i]), p)) return 0;
+    return in_conflict(d, t, p, gid);
+}
+
+anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out) {
+    out->n = 0;
+    if (!d->dim3 || v < 0 || v >= d->nv)
+        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: no vertex %d in a 3D triangulation",
+                       (int)v);
+    int32_t t0 = d->vtet[v];
+    if (buf_reserve(d->ctx, out, 32)) goto nomem;
+    out->a[out->n++] = t0;
+    d->next[t0] = NEXT_OUT;
+    for (size_t k = 0; k < out->n; k++) {
+        int32_t t = out->a[k];
+        if (out->n + 4 > out->cap && buf_reserve(d->ctx, out, out->n + 4)) goto nomem;
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        for (int j = 0; j < 4; j++) {
+            if (tv[j] == v) continue; /* the only face without v */
+            int32_t n = d->tet_adj[4 * (size_t)t + (size_t)j] >> 2;
+            if (d->next[n] != NEXT_NONE) continue;
+            d->next[n] = NEXT_OUT;
+            out->a[out->n++] = n;
+        }
+    }
+    for (size_t k = 0; k < out->n; k++) d->next[out->a[k]] = NEXT_NONE;
+    return ANISTAR_OK;
+nomem:
+    for (size_t k = 0; k < out->n; k++) d->next[out->a[k]] = NEXT_NONE;
+    out->n = 0;
+    return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
+}
+
+anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
+    anistar_status st = as_del3_vertex_tets(d, v, out);
+    if (st != ANISTAR_OK) return st;
+    /* Rewrite in place: each tet gives at most 3 facets, so collect into a second pass over
+     * a copy at the end of the buffer. */
+    size_t nt = out->n;
+    if (buf_reserve(d->ctx, out, 4 * nt)) {
+        out->n = 0;
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (facets of vertex %d)",
+                       (int)v);
+    }
+    int32_t *tets = out->a + 3 * nt; /* the copy lives after the room for 3 nt facets */
+    memmove(tets, out->a, nt * sizeof *tets);
+    size_t nf = 0;
+    for (size_t k = 0; k < nt; k++) {
+        int32_t t = tets[k];
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        int inf = (tv[0] | tv[1] | tv[2] | tv[3]) < 0 ? inf_slot(tv) : -1;
+        for (int j = 0; j < 4; j++) {
+            if (tv[j] == v) continue;
+            if (inf >= 0 && inf != j) continue; /* the facet holds the infinite vertex */
+            int32_t n = d->tet_adj[4 * (size_t)t + (size_t)j] >> 2;
+            if (t < n) out->a[nf++] = 4 * t + j;
+        }
+    }
+    out->n = nf;
+    return ANISTAR_OK;
+}
+
+/* ---- circumcenter ------------------------------------------------------------------------ */
+
+/* Double-double arithmetic (value hi + lo, |lo| <= ulp(hi)/2), for nearly flat tets. Needs
+ * -ffp-contract=off (the build sets it). */
+typedef struct dd {
+    double hi, lo;
+} dd;
+
+static inline dd dd_two_sum(double a, double b) {
+    double s = a + b, bb = s - a;
+    dd r = {s, (a - (s - bb)) + (b - bb)};
+    return r;
+}
+static inline dd dd_quick(double a, double b) {
+    double s = a + b;
+    dd r = {s, b - (s - a)};
+    return r;
+}
+static inline void dd_split(double a, double *hi, double *lo) {
+    double c = 134217729.0 * a; /* 2^27 + 1 */
+    *hi = c - (c - a);
+    *lo = a - *hi;
+}
+static inline dd dd_two_prod(double a, double b) {
+    double p = a * b, ah, al, bh, bl;
+    dd_split(a, &ah, &al);
+    dd_split(b, &bh, &bl);
+    dd r = {p, ((ah * bh - p) + ah * bl + al * bh) + al * bl};
+    return r;
+}
+static inline dd dd_add(dd a, dd b) {
+    dd s = dd_two_sum(a.hi, b.hi), t = dd_two_sum(a.lo, b.lo);
+    s.lo += t.hi;
+    s = dd_quick(s.hi, s.lo);
+    s.lo += t.lo;
+    return dd_quick(s.hi, s.lo);
+}
+static inline dd dd_neg(dd a) {
+    dd r = {-a.hi, -a.lo};
+    return r;
+}
+static inline dd dd_sub(dd a, dd b) { return dd_add(a, dd_neg(b)); }
+static inline dd dd_mul(dd a, dd b) {
+    dd p = dd_two_prod(a.hi, b.hi);
+    p.lo += a.hi * b.lo + a.lo * b.hi;
+    return dd_quick(p.hi, p.lo);
+}
+static inline dd dd_div(dd a, dd b) {
+    double q1 = a.hi / b.hi;
+    dd r = dd_sub(a, dd_mul(b, (dd){q1, 0}));
+    double q2 = r.hi / b.hi;
+    r = dd_sub(r, dd_mul(b, (dd){q2, 0}));
+    double q3 = r.hi / b.hi;
+    dd q = dd_quick(q1, q2);
+    return dd_add(q, (dd){q3, 0});
+}
+
+/* The center relative to a of the sphere through a, a+u, a+v, a+w, in double-double from
+ * the exact differences. */
+static void circumcenter_dd(const double *a, const double *b, const double *c,
+                            const double *e, double out[3]) {
+    dd u[3], v[3], w[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = dd_two_sum(b[i], -a[i]);
+        v[i] = dd_two_sum(c[i], -a[i]);
+        w[i] = dd_two_sum(e[i], -a[i]);
+    }
+    dd vw[3], wu[3], uv[3];
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        vw[i] = dd_sub(dd_mul(v[j], w[k]), dd_mul(v[k], w[j]));
+        wu[i] = dd_sub(dd_mul(w[j], u[k]), dd_mul(w[k], u[j]));
+        uv[i] = dd_sub(dd_mul(u[j], v[k]), dd_mul(u[k], v[j]));
+    }
+    dd nu = {0, 0}, nv = {0, 0}, nw = {0, 0}, det = {0, 0};
+    for (int i = 0; i < 3; i++) {
+        nu = dd_add(nu, dd_mul(u[i], u[i]));
+        nv = dd_add(nv, dd_mul(v[i], v[i]));
+        nw = dd_add(nw, dd_mul(w[i], w[i]));
+        det = dd_add(det, dd_mul(u[i], vw[i]));
+    }
+    dd den = dd_add(det, det);
+    for (int i = 0; i < 3; i++) {
+        dd num = dd_add(dd_add(dd_mul(nu, vw[i]), dd_mul(nv, wu[i])), dd_mul(nw, uv[i]));
+        dd x = dd_div(num, den);
+        out[i] = a[i] + (x.hi + x.lo);
+    }
+}
+
+/*
+ * design: relative to a = v0, with u, v, w the edge vectors to v1, v2, v3:
+ *   x = a + (|u|^2 (v x w) + |v|^2 (w x u) + |w|^2 (u x v)) / (2 u.(v x w))   (Cramer).
+ * In doubles the relative error (to the circumradius) is at most about 2^5 eps kappa with
+ * kappa = L^3 / |u.(v x w)|, L the longest of u, v, w; we accept it when kappa <= 2^8
+ * (error < 2^-40). Otherwise (nearly flat tets) the same formula runs in double-double on
+ * the exact differences: error about 2^-100 kappa, below 2^-40 for kappa <= 2^60 (a
+ * relative volume above 1e-18); flatter tets get that degraded accuracy (their center is
+ * then at least 1e18 edge lengths away).
+ */
+int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]) {
+    if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) return -1;
+    const int32_t *tv = d->tet_v + 4 * (size_t)t;
+    const double *a = pt(d, tv[0]), *b = pt(d, tv[1]), *p2 = pt(d, tv[2]), *p3 = pt(d, tv[3]);
+    double u[3], v[3], w[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = b[i] - a[i];
+        v[i] = p2[i] - a[i];
+        w[i] = p3[i] - a[i];
+    }
+    double vw[3] = {v[1] * w[2] - v[2] * w[1], v[2] * w[0] - v[0] * w[2],
+                    v[0] * w[1] - v[1] * w[0]};
+    double wu[3] = {w[1] * u[2] - w[2] * u[1], w[2] * u[0] - w[0] * u[2],
+                    w[0] * u[1] - w[1] * u[0]};
+    double uv[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0]};
+    double nu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    double nv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double nw = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+    double det = u[0] * vw[0] + u[1] * vw[1] + u[2] * vw[2];
+    double l2 = nu > nv ? nu : nv;
+    if (nw > l2) l2 = nw;
+    /* kappa <= 2^8  <=>  det^2 >= 2^-16 L^6 */
+    if (det * det * 65536.0 >= l2 * l2 * l2 && det != 0) {
+        double s = 0.5 / det;
+        for (int i = 0; i < 3; i++) c[i] = a[i] + (nu * vw[i] + nv * wu[i] + nw * uv[i]) * s;
+        return 0;
+    }
+    circumcenter_dd(a, b, p2, p3, c);
+    return 0;
+}
+
+/* ---- validators ------------------------------------------------------------------------- */
+
+static int face_opposite(const int32_t *tv, int i, const int32_t *nv, int j) {
+    int32_t x[3] = {tv[face_vtx[i][0]], tv[face_vtx[i][1]], tv[face_vtx[i][2]]};
+    int32_t y[3] = {nv[face_vtx[j][0]], nv[face_vtx[j][1]], nv[face_vtx[j][2]]};
+    /* y must be a rotation of (x0, x2, x1) */
+    for (int r = 0; r < 3; r++)
+        if (y[r] == x[0] && y[(r + 1) % 3] == x[2] && y[(r + 2) % 3] == x[1]) return 1;
+    return 0;
+}
+
+anistar_status as_del3_check_combinatorics(as_del3 *d) {
+    anistar_context *ctx = d->ctx;
+    if (!d->dim3) {
+        if (d->nt != 0 || d->nlive != 0)
+            return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tets exist before 3D");
+        return ANISTAR_OK;
+    }
+    /* free list */
+    int32_t nfree = 0;
+    for (int32_t t = d->free_head; t >= 0; t = d->next[t]) {
+        if (t >= d->nt || d->tet_v[4 * (size_t)t] != AS_DEL3_DEAD || ++nfree > d->nt)
+            return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: bad free list at %d", (int)t);
+    }
+    int32_t nlive = 0, nfinite = 0;
+    for (int32_t t = 0; t < d->nt; t++) {
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        if (tv[0] == AS_DEL3_DEAD) continue;
+        nlive++;
+        if (d->next[t] != NEXT_NONE)
+            return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tet %d left marked", (int)t);
+        int ninf = 0;
+        for (int i = 0; i < 4; i++) {
+            if (tv[i] < AS_DEL3_INF || tv[i] >= d->nv)
+                return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tet %d vertex %d", (int)t,
+                               (int)tv[i]);
+            if (tv[i] == AS_DEL3_INF) ninf++;
+            for (int j = 0; j < i; j++)
+                if (tv[i] == tv[j])
+                    return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tet %d repeats %d",
+                                   (int)t, (int)tv[i]);
+        }
+        if (ninf > 1)
+            return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tet %d has %d infinite vertices",
+                           (int)t, ninf);
+        for (int i = 0; i < 4; i++) {
+            int32_t a = d->tet_adj[4 * (size_t)t + (size_t)i], n = a >> 2, j = a & 3;
+            if (!as_del3_is_live(d, n) || n == t || d->tet_adj[a] != 4 * t + i)
+                return as_fail(ctx, ANISTAR_EINTERNAL,
+                               "del3 check: adjacency of tet %d face %d not symmetric", (int)t, i);
+            if (!face_opposite(tv, i, d->tet_v + 4 * (size_t)n, j))
+                return as_fail(ctx, ANISTAR_EINTERNAL,
+                               "del3 check: tets %d and %d disagree on their face", (int)t,
+                               (int)n);
+        }
+        if (ninf == 0) {
+            nfinite++;
+            if (!(as_orient3d(pt(d, tv[0]), pt(d, tv[1]), pt(d, tv[2]), pt(d, tv[3])) > 0))
+                return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: tet %d not positive",
+                               (int)t);
+        } else {
+            int k = inf_slot(tv);
+            int32_t a = d->tet_adj[4 * (size_t)t + (size_t)k], n = a >> 2;
+            if (as_del3_is_infinite(d, n))
+                return as_fail(ctx, ANISTAR_EINTERNAL,
+                               "del3 check: infinite tet %d beside an infinite tet", (int)t);
+            const double *q[4];
+            for (int i = 0; i < 4; i++)
+                q[i] = i == k ? pt(d, d->tet_v[a]) : pt(d, tv[i]);
+            if (!(as_orient3d(q[0], q[1], q[2], q[3]) < 0))
+                return as_fail(ctx, ANISTAR_EINTERNAL,
+                               "del3 check: hull face of tet %d does not see its inside",
+                               (int)t);
+        }
+    }
+    if (nlive != d->nlive || nlive + nfree != d->nt)
+        return as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: counts live %d/%d free %d slots %d",
+                       (int)nlive, (int)d->nlive, (int)nfree, (int)d->nt);
+
+    /* Vertex links. cnt[v+1]: tets holding v (scan); a BFS from vtet must reach them all,
+     * and the link must be a 2-sphere: neighbours = 2 + tets/2. */
+    size_t nvv = (size_t)d->nv + 1;
+    int32_t *cnt = as_alloc_array(ctx, nvv, sizeof *cnt);
+    int32_t *stamp = as_alloc_array(ctx, nvv, sizeof *stamp);
+    as_del3_buf buf = {0};
+    anistar_status st = ANISTAR_OK;
+    if (!cnt || !stamp) {
+        st = as_fail(ctx, ANISTAR_ENOMEM, "del3 check: out of memory");
+        goto out;
+    }
+    memset(cnt, 0, nvv * sizeof *cnt);
+    for (size_t i = 0; i < nvv; i++) stamp[i] = -1;
+    int32_t some_inf = -1;
+    for (int32_t t = 0; t < d->nt; t++) {
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        if (tv[0] == AS_DEL3_DEAD) continue;
+        for (int i = 0; i < 4; i++) cnt[tv[i] + 1]++;
+        if (some_inf < 0 && (tv[0] | tv[1] | tv[2] | tv[3]) < 0) some_inf = t;
+    }
+    int64_t sum_nb = 0;
+    for (int32_t v = AS_DEL3_INF; v < d->nv; v++) {
+        int32_t t0;
+        if (v == AS_DEL3_INF) {
+            t0 = some_inf;
+        } else {
+            t0 = d->vtet[v];
+            if (cnt[v + 1] == 0) {
+                st = as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: vertex %d in no tet", (int)v);
+                goto out;
+            }
+            const int32_t *tv = d->tet_v + 4 * (size_t)t0;
+            if (!as_del3_is_live(d, t0) ||
+                (tv[0] != v && tv[1] != v && tv[2] != v && tv[3] != v)) {
+                st = as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: vtet of vertex %d wrong",
+                             (int)v);
+                goto out;
+            }
+        }
+        if (t0 < 0) {
+            st = as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: no infinite tet");
+            goto out;
+        }
+        /* BFS over the tets around v (the same walk as as_del3_vertex_tets, which cannot
+         * take the infinite vertex). */
+        buf.n = 0;
+        if (buf_reserve(ctx, &buf, 4)) goto nomem;
+        buf.a[buf.n++] = t0;
+        d->next[t0] = NEXT_OUT;
+        for (size_t k = 0; k < buf.n; k++) {
+            int32_t t = buf.a[k];
+            if (buf.n + 4 > buf.cap && buf_reserve(ctx, &buf, buf.n + 4)) {
+                for (size_t m = 0; m < buf.n; m++) d->next[buf.a[m]] = NEXT_NONE;
+                goto nomem;
+            }
+            const int32_t *tv = d->tet_v + 4 * (size_t)t;
+            for (int j = 0; j < 4; j++) {
+                if (tv[j] == v) continue;
+                int32_t n = d->tet_adj[4 * (size_t)t + (size_t)j] >> 2;
+                if (d->next[n] != NEXT_NONE) continue;
+                d->next[n] = NEXT_OUT;
+                buf.a[buf.n++] = n;
+            }
+        }
+        int32_t nb = 0;
+        for (size_t k = 0; k < buf.n; k++) {
+            const int32_t *tv = d->tet_v + 4 * (size_t)buf.a[k];
+            d->next[buf.a[k]] = NEXT_NONE;
+            for (int j = 0; j < 4; j++)
+                if (tv[j] != v && stamp[tv[j] + 1] != v + 1) {
+                    stamp[tv[j] + 1] = v + 1;
+                    nb++;
+                }
+        }
+        if ((int64_t)buf.n != cnt[v + 1] || (buf.n & 1u) || nb != 2 + (int32_t)(buf.n / 2)) {
+            st = as_fail(ctx, ANISTAR_EINTERNAL,
+                         "del3 check: link of vertex %d is not a sphere (%d tets reached of %d,"
+                         " %d neighbours)",
+                         (int)v, (int)buf.n, (int)cnt[v + 1], (int)nb);
+            goto out;
+        }
+        sum_nb += nb;
+    }
+    /* Euler on the 3-sphere: V - E + F - T = 0 with F = 2T. */
+    {
+        int64_t V = (int64_t)d->nv + 1, E = sum_nb / 2, T = nlive, F = 2 * T;
+        if ((sum_nb & 1) || V - E + F - T != 0)
+            st = as_fail(ctx, ANISTAR_EINTERNAL, "del3 check: Euler V-E+F-T = %lld",
+                         (long long)(V - E + F - T));
+    }
+    (void)nfinite;
+    goto out;
+nomem:
+    st = as_fail(ctx, ANISTAR_ENOMEM, "del3 check: out of memory");
+out:
+    as_free(ctx, cnt, nvv * sizeof *cnt);
+    as_free(ctx, stamp, nvv * sizeof *stamp);
+    as_del3_buf_free(ctx, &buf);
+    return st;
+}
+
+anistar_status as_del3_check_delaunay(as_del3 *d) {
+    for (int32_t t = 0; t < d->nt; t++) {
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        if (tv[0] == AS_DEL3_DEAD) continue;
+        int inf = (tv[0] | tv[1] | tv[2] | tv[3]) < 0 ? inf_slot(tv) : -1;
+        for (int i = 0; i < 4; i++) {
+            if (i == inf) continue; /* checked by as_del3_check_combinatorics */
+            int32_t w = d->tet_v[d->tet_adj[4 * (size_t)t + (size_t)i]];
+            if (w == AS_DEL3_INF) continue;
+            if (in_conflict(d, t, pt(d, w), d->gid[w]))
+                return as_fail(d->ctx, ANISTAR_EINTERNAL,
+                               "del3 check: vertex %d (gid %lld) in conflict with tet %d",
+                               (int)w, (long long)d->gid[w], (int)t);
+        }
+    }
+    return ANISTAR_OK;
+}

@@ -1,0 +1,159 @@
+/*
+ * sort.c — spatial sorts for incremental insertion: Hilbert order and BRIO (sort.h).
+ */
+#include "geom/sort.h"
+
+#include <math.h>
+#include <string.h>
+
+uint64_t as_hilbert3_index(uint32_t x, uint32_t y, uint32_t z, int bits) {
+    uint32_t c[3] = {x, y, z};
+    uint32_t top = (uint32_t)1 << (bits - 1);
+    /* From the coarsest level down: where the bit of axis i is set, flip the lower bits of
+     * axis 0; otherwise swap the lower bits of axes 0 and i. This undoes the reflections
+     * and rotations the curve applies in the sub-cubes. */
+    for (uint32_t q = top; q > 1; q >>= 1) {
+        uint32_t low = q - 1;
+        for (int i = 0; i < 3; i++) {
+            if (c[i] & q) {
+                c[0] ^= low;
+            } else {
+                uint32_t sw = (c[0] ^ c[i]) & low;
+                c[0] ^= sw;
+                c[i] ^= sw;
+            }
+        }
+    }
+    /* Gray code across the axes. */
+    c[1] ^= c[0];
+    c[2] ^= c[1];
+    uint32_t g = 0;
+    for (uint32_t q = top; q > 1; q >>= 1)
+        if (c[2] & q) g ^= q - 1;
+    c[0] ^= g;
+    c[1] ^= g;
+    c[2] ^= g;
+    /* Interleave: level by level, axis 0 first. */
+    uint64_t h = 0;
+    for (int l = bits - 1; l >= 0; l--)
+        for (int i = 0; i < 3; i++) h = (h << 1) | ((c[i] >> l) & 1u);
+    return h;
+}
+
+static uint64_t mix64(uint64_t z) {
+    z += 0x9e3779b97f4a7c15ULL;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+enum { HBITS = 16 };
+
+/* LSD radix sort of (key, idx) pairs by key, 8-bit digits, skipping digits on which all
+ * keys agree. k/ix hold the input and receive the output; k2/ix2 are scratch. Stable. */
+static void radix_sort(uint64_t *k, int32_t *ix, uint64_t *k2, int32_t *ix2, size_t n) {
+    uint64_t all_or = 0, all_and = ~(uint64_t)0;
+    for (size_t i = 0; i < n; i++) {
+        all_or |= k[i];
+        all_and &= k[i];
+    }
+    uint64_t varying = all_or ^ all_and;
+    uint64_t *src = k, *dst = k2;
+    int32_t *isrc = ix, *idst = ix2;
+    for (int shift = 0; shift < 64; shift += 8) {
+        if (((varying >> shift) & 0xffu) == 0) continue;
+        size_t count[257];
+        memset(count, 0, sizeof count);
+        for (size_t i = 0; i < n; i++) count[((src[i] >> shift) & 0xffu) + 1]++;
+        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
+        for (size_t i = 0; i < n; i++) {
+            size_t pos = count[(src[i] >> shift) & 0xffu]++;
+            dst[pos] = src[i];
+            idst[pos] = isrc[i];
+        }
+        uint64_t *tk = src;
+        src = dst;
+        dst = tk;
+        int32_t *ti = isrc;
+        isrc = idst;
+        idst = ti;
+    }
+    if (src != k) {
+        memcpy(k, src, n * sizeof *k);
+        memcpy(ix, isrc, n * sizeof *ix);
+    }
+}
+
+/* Shared by both sorts: brio == 0 sorts along the curve only. */
+static anistar_status spatial_sort(anistar_context *ctx, const double *pts, int32_t n,
+                                   int brio, uint64_t seed, int32_t *order) {
+    if (n < 0) return as_fail(ctx, ANISTAR_EINVAL, "spatial sort: negative count %d", (int)n);
+    if (n == 0) return ANISTAR_OK;
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; a++) lo[a] = hi[a] = pts[a];
+    for (int32_t i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) {
+            double x = pts[3 * (size_t)i + (size_t)a];
+            if (!isfinite(x))
+                return as_fail(ctx, ANISTAR_EINVAL,
+                               "spatial sort: point %d has a non-finite coordinate", (int)i);
+            if (x < lo[a]) lo[a] = x;
+            if (x > hi[a]) hi[a] = x;
+        }
+    }
+    double side = 0;
+    for (int a = 0; a < 3; a++)
+        if (hi[a] - lo[a] > side) side = hi[a] - lo[a];
+    const double cells = (double)((1u << HBITS) - 1);
+    double scale = side > 0 ? cells / side : 0;
+    if (!isfinite(scale)) scale = 0; /* side subnormal: every point in one cell */
+
+    size_t nn = (size_t)n;
+    uint64_t *keys = as_alloc_array(ctx, 2 * nn, sizeof *keys);
+    int32_t *tmp = as_alloc_array(ctx, nn, sizeof *tmp);
+    if (!keys || !tmp) {
+        as_free(ctx, keys, 2 * nn * sizeof *keys);
+        as_free(ctx, tmp, nn * sizeof *tmp);
+        return as_fail(ctx, ANISTAR_ENOMEM, "spatial sort: out of memory for %d points",
+                       (int)n);
+    }
+    /* The first BRIO round gets about 64 points: levels 0 .. maxlevel, level 0 (the last
+     * round) with probability 1/2. */
+    int maxlevel = 0;
+    while (maxlevel < 30 && ((int64_t)64 << (maxlevel + 1)) <= (int64_t)n) maxlevel++;
+    for (int32_t i = 0; i < n; i++) {
+        uint32_t c[3];
+        for (int a = 0; a < 3; a++) {
+            double u = (pts[3 * (size_t)i + (size_t)a] - lo[a]) * scale;
+            if (!(u >= 0)) u = 0;
+            if (u > cells) u = cells;
+            c[a] = (uint32_t)u;
+        }
+        uint64_t key = as_hilbert3_index(c[0], c[1], c[2], HBITS);
+        if (brio) {
+            uint64_t h = mix64(seed ^ mix64((uint64_t)(uint32_t)i));
+            int level = 0;
+            while (level < maxlevel && (h & 1u)) {
+                level++;
+                h >>= 1;
+            }
+            key |= (uint64_t)(maxlevel - level) << (3 * HBITS);
+        }
+        keys[i] = key;
+        order[i] = i;
+    }
+    radix_sort(keys, order, keys + nn, tmp, nn);
+    as_free(ctx, keys, 2 * nn * sizeof *keys);
+    as_free(ctx, tmp, nn * sizeof *tmp);
+    return ANISTAR_OK;
+}
+
+anistar_status as_sort_hilbert(anistar_context *ctx, const double *pts, int32_t n,
+                               int32_t *order) {
+    return spatial_sort(ctx, pts, n, 0, 0, order);
+}
+
+anistar_status as_sort_brio(anistar_context *ctx, const double *pts, int32_t n, uint64_t seed,
+                            int32_t *order) {
+    return spatial_sort(ctx, pts, n, 1, seed, order);
+}

@@ -1,0 +1,354 @@
+/*
+ * bspline.c — cubic B-spline reconstruction of a 3D image with a background outside
+ * (see bspline.h for the definition, boundary condition and costs).
+ *
+ * References for the facts used (formulas only): M. Unser, "Splines: a perfect fit for
+ * signal and image processing", IEEE Signal Processing Magazine 16(6), 1999 (the
+ * recursive prefilter: direct B-spline filter (q + 4 + q^-1)/6, inverse
+ * -6z / ((1 - z q^-1)(1 - z q)) with z = sqrt(3) - 2).
+ */
+#include "surface/bspline.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+/* The pole of the cubic B-spline prefilter, sqrt(3) - 2, to double precision. */
+#define AS_BSPLINE_POLE (-0.26794919243112270647)
+
+struct as_bspline {
+    as_grid grid;
+    ptrdiff_t n[3];      /* voxels per axis */
+    ptrdiff_t stride[3]; /* 1, nx, nx*ny */
+    double *coef;        /* nx*ny*nz coefficients of (voxels - background), x fastest */
+    size_t coef_bytes;
+    double background;
+    double coef_max;
+    double zpow[AS_BSPLINE_REACH + 4]; /* z^d, d = 0 .. REACH+3 */
+};
+
+/* ---- prefilter ---------------------------------------------------------------------- */
+
+/* The same recursions as as_prefilter_axis on one contiguous row (the x pass). */
+static void as_prefilter_row(double *c, size_t n) {
+    const double z = AS_BSPLINE_POLE;
+    for (size_t k = 1; k < n; k++) c[k] += z * c[k - 1];
+    c[n - 1] *= 6.0 * (-z / (1.0 - z * z));
+    for (size_t k = n - 1; k-- > 0;) c[k] = z * (c[k + 1] - 6.0 * c[k]);
+}
+
+/*
+ * In-place prefilter along one axis of `width` parallel lines: sample k of line w is
+ * c[k*step + w] (the y pass runs over all x rows of a slab at once: width = step = nx;
+ * the z pass over whole slabs: width = step = nx*ny; both stream through memory).
+ * design: (Unser 1999, with the data extended by 0 on both sides)
+ *   causal     c+[0] = s[0],  c+[k] = s[k] + z c+[k-1]
+ *   anticausal C[n-1] = 6 (-z / (1 - z^2)) c+[n-1],  C[k] = z (C[k+1] - 6 c+[k])
+ *   (C = 6 c-, the gain 6 folded into the recursion).
+ */
+static void as_prefilter_axis(double *c, size_t n, size_t step, size_t width) {
+    const double z = AS_BSPLINE_POLE;
+    for (size_t k = 1; k < n; k++) {
+        double *cur = c + k * step;
+        const double *prev = cur - step;
+        for (size_t w = 0; w < width; w++) cur[w] += z * prev[w];
+    }
+    const double g_last = 6.0 * (-z / (1.0 - z * z));
+    double *last = c + (n - 1) * step;
+    for (size_t w = 0; w < width; w++) last[w] *= g_last;
+    for (size_t k = n - 1; k-- > 0;) {
+        double *cur = c + k * step;
+        const double *next = cur + step;
+        for (size_t w = 0; w < width; w++) cur[w] = z * (next[w] - 6.0 * cur[w]);
+    }
+}
+
+anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, double background,
+                                 as_bspline **out) {
+    *out = NULL;
+    if (!img || !img->data) return as_fail(ctx, ANISTAR_EINVAL, "B-spline: NULL image");
+    if (!isfinite(background))
+        return as_fail(ctx, ANISTAR_EINVAL, "B-spline: background value %g is not finite",
+                       background);
+    size_t first = 0, bad = as_image_count_nonfinite(img, &first);
+    if (bad)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "B-spline: image has %zu non-finite voxels (NaN or infinite), the first "
+                       "at index %zu",
+                       bad, first);
+    size_t count = img->count, bytes;
+    if (as_mul_size(count, sizeof(double), &bytes) || bytes > (size_t)PTRDIFF_MAX)
+        return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: %zu coefficients overflow the address space",
+                       count);
+    as_bspline *bs = as_alloc(ctx, sizeof *bs);
+    if (!bs) return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory");
+    memset(bs, 0, sizeof *bs);
+    bs->coef = as_alloc(ctx, bytes);
+    if (!bs->coef) {
+        as_free(ctx, bs, sizeof *bs);
+        return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory for %zu bytes of coefficients",
+                       bytes);
+    }
+    bs->coef_bytes = bytes;
+    bs->grid = img->grid;
+    bs->background = background;
+    size_t nx = img->nx, ny = img->ny, nz = img->nz;
+    bs->n[0] = (ptrdiff_t)nx;
+    bs->n[1] = (ptrdiff_t)ny;
+    bs->n[2] = (ptrdiff_t)nz;
+    bs->stride[0] = 1;
+    bs->stride[1] = (ptrdiff_t)nx;
+    bs->stride[2] = (ptrdiff_t)(nx * ny);
+    bs->zpow[0] = 1.0;
+    for (int d = 1; d < AS_BSPLINE_REACH + 4; d++) bs->zpow[d] = bs->zpow[d - 1] * AS_BSPLINE_POLE;
+
+    double *c = bs->coef;
+    for (size_t r = 0; r < ny * nz; r++) { /* convert, subtract b and filter x, row by row */
+        double *row = c + r * nx;
+        as_image_to_double(img, r * nx, nx, row);
+        for (size_t i = 0; i < nx; i++) row[i] -= background;
+        as_prefilter_row(row, nx);
+    }
+    for (size_t k = 0; k < nz; k++) as_prefilter_axis(c + k * nx * ny, ny, nx, nx);
+    as_prefilter_axis(c, nz, nx * ny, nx * ny);
+
+    double m = 0;
+    int finite = 1;
+    for (size_t i = 0; i < count; i++) {
+        double a = fabs(c[i]);
+        if (!(a <= DBL_MAX)) finite = 0;
+        if (a > m) m = a;
+    }
+    if (!finite) {
+        as_bspline_free(ctx, bs);
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "B-spline: voxel values (minus background %g) too large: the "
+                       "coefficients overflow",
+                       background);
+    }
+    bs->coef_max = m;
+    *out = bs;
+    return ANISTAR_OK;
+}
+
+void as_bspline_free(anistar_context *ctx, as_bspline *bs) {
+    if (!bs) return;
+    as_free(ctx, bs->coef, bs->coef_bytes);
+    as_free(ctx, bs, sizeof *bs);
+}
+
+const as_grid *as_bspline_grid(const as_bspline *bs) { return &bs->grid; }
+double as_bspline_background(const as_bspline *bs) { return bs->background; }
+double as_bspline_coef_max(const as_bspline *bs) { return bs->coef_max; }
+
+double as_bspline_margin(const as_bspline *bs, double level) {
+    double gap = fabs(level - bs->background);
+    if (!(gap > 0)) return AS_BSPLINE_REACH;
+    if (bs->coef_max == 0) return 0;
+    double d = 2.0 + log(gap / bs->coef_max) / log(-AS_BSPLINE_POLE);
+    if (!(d > 0)) return 0;
+    d = ceil(d);
+    return d < AS_BSPLINE_REACH ? d : AS_BSPLINE_REACH;
+}
+
+/* ---- evaluation --------------------------------------------------------------------- */
+
+/* The 4 coefficient offsets and the weights (and derivatives up to `order`) of one
+ * axis, boundary factors z^d folded into the weights. */
+typedef struct as_axis {
+    ptrdiff_t off[4];
+    double w[4], d1[4], d2[4];
+} as_axis;
+
+/*
+ * Prepare axis a at voxel coordinate t (finite). Returns 0 when t lies more than
+ * AS_BSPLINE_REACH voxels outside [0, n-1] (the value is then the background).
+ * design: knots at the integers; t = floor(t) + u, the four coefficients
+ *   floor(t)-1 .. floor(t)+2 with the cubic B-spline pieces at u (and their derivatives);
+ *   an index outside [0, n-1] reads the clamped coefficient times z^distance.
+ */
+static inline int as_axis_prepare(const as_bspline *bs, int a, double t, int order, as_axis *ax) {
+    const ptrdiff_t n = bs->n[a];
+    if (!(t >= -(double)AS_BSPLINE_REACH && t <= (double)(n - 1) + AS_BSPLINE_REACH)) return 0;
+    double fl = floor(t), u = t - fl, u2 = u * u, u3 = u2 * u, m = 1.0 - u;
+    ptrdiff_t i0 = (ptrdiff_t)fl - 1;
+    ax->w[0] = m * m * m * (1.0 / 6.0);
+    ax->w[1] = (2.0 / 3.0) - u2 + 0.5 * u3;
+    ax->w[2] = (1.0 / 6.0) + 0.5 * (u + u2 - u3);
+    ax->w[3] = u3 * (1.0 / 6.0);
+    if (order >= 1) {
+        ax->d1[0] = -0.5 * m * m;
+        ax->d1[1] = 1.5 * u2 - 2.0 * u;
+        ax->d1[2] = 0.5 + u - 1.5 * u2;
+        ax->d1[3] = 0.5 * u2;
+    }
+    if (order >= 2) {
+        ax->d2[0] = m;
+        ax->d2[1] = 3.0 * u - 2.0;
+        ax->d2[2] = 1.0 - 3.0 * u;
+        ax->d2[3] = u;
+    }
+    const ptrdiff_t s = bs->stride[a];
+    if (i0 >= 0 && i0 + 3 < n) {
+        for (int k = 0; k < 4; k++) ax->off[k] = (i0 + k) * s;
+        return 1;
+    }
+    for (int k = 0; k < 4; k++) {
+        ptrdiff_t i = i0 + k, idx = i;
+        double f = 1.0;
+        if (i < 0) {
+            idx = 0;
+            f = bs->zpow[-i];
+        } else if (i > n - 1) {
+            idx = n - 1;
+            f = bs->zpow[i - (n - 1)];
+        }
+        ax->off[k] = idx * s;
+        ax->w[k] *= f;
+        if (order >= 1) ax->d1[k] *= f;
+        if (order >= 2) ax->d2[k] *= f;
+    }
+    return 1;
+}
+
+static inline int as_finite3(const double v[3]) {
+    return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+double as_bspline_value_voxel(const as_bspline *bs, const double v[3]) {
+    if (!as_finite3(v)) return NAN;
+    as_axis x, y, z;
+    if (!as_axis_prepare(bs, 0, v[0], 0, &x) || !as_axis_prepare(bs, 1, v[1], 0, &y) ||
+        !as_axis_prepare(bs, 2, v[2], 0, &z))
+        return bs->background;
+    double sum = 0;
+    for (int c = 0; c < 4; c++) {
+        const double *plane = bs->coef + z.off[c];
+        double sy = 0;
+        for (int b = 0; b < 4; b++) {
+            const double *row = plane + y.off[b];
+            double sx = x.w[0] * row[x.off[0]] + x.w[1] * row[x.off[1]] + x.w[2] * row[x.off[2]] +
+                        x.w[3] * row[x.off[3]];
+            sy += y.w[b] * sx;
+        }
+        sum += z.w[c] * sy;
+    }
+    return bs->background + sum;
+}
+
+/*
+ * Value and voxel-coordinate derivatives up to `order` (1 or 2): g[3] and h[6].
+ * design: per (z, y) row, the three x sums (value, d/dx, d2/dx2); per z plane, the six
+ *   y combinations; then the ten z combinations (separable tensor product).
+ */
+static double as_eval_voxel(const as_bspline *bs, const double v[3], int order, double g[3],
+                            double h[6]) {
+    if (!as_finite3(v)) {
+        for (int i = 0; i < 3; i++) g[i] = NAN;
+        if (order >= 2)
+            for (int i = 0; i < 6; i++) h[i] = NAN;
+        return NAN;
+    }
+    as_axis x, y, z;
+    if (!as_axis_prepare(bs, 0, v[0], order, &x) || !as_axis_prepare(bs, 1, v[1], order, &y) ||
+        !as_axis_prepare(bs, 2, v[2], order, &z)) {
+        for (int i = 0; i < 3; i++) g[i] = 0;
+        if (order >= 2)
+            for (int i = 0; i < 6; i++) h[i] = 0;
+        return bs->background;
+    }
+    /* Accumulators: f, fx, fy, fz, fxx, fxy, fxz, fyy, fyz, fzz. */
+    double f = 0, fx = 0, fy = 0, fz = 0, fxx = 0, fxy = 0, fxz = 0, fyy = 0, fyz = 0, fzz = 0;
+    for (int c = 0; c < 4; c++) {
+        const double *plane = bs->coef + z.off[c];
+        double t0 = 0, tx = 0, ty = 0, txx = 0, txy = 0, tyy = 0;
+        for (int b = 0; b < 4; b++) {
+            const double *row = plane + y.off[b];
+            double c0 = row[x.off[0]], c1 = row[x.off[1]], c2 = row[x.off[2]], c3 = row[x.off[3]];
+            double s0 = x.w[0] * c0 + x.w[1] * c1 + x.w[2] * c2 + x.w[3] * c3;
+            double s1 = x.d1[0] * c0 + x.d1[1] * c1 + x.d1[2] * c2 + x.d1[3] * c3;
+            t0 += y.w[b] * s0;
+            tx += y.w[b] * s1;
+            ty += y.d1[b] * s0;
+            if (order >= 2) {
+                double s2 = x.d2[0] * c0 + x.d2[1] * c1 + x.d2[2] * c2 + x.d2[3] * c3;
+                txx += y.w[b] * s2;
+                txy += y.d1[b] * s1;
+                tyy += y.d2[b] * s0;
+            }
+        }
+        f += z.w[c] * t0;
+        fx += z.w[c] * tx;
+        fy += z.w[c] * ty;
+        fz += z.d1[c] * t0;
+        if (order >= 2) {
+            fxx += z.w[c] * txx;
+            fxy += z.w[c] * txy;
+            fyy += z.w[c] * tyy;
+            fxz += z.d1[c] * tx;
+            fyz += z.d1[c] * ty;
+            fzz += z.d2[c] * t0;
+        }
+    }
+    g[0] = fx;
+    g[1] = fy;
+    g[2] = fz;
+    if (order >= 2) {
+        h[0] = fxx;
+        h[1] = fxy;
+        h[2] = fxz;
+        h[3] = fyy;
+        h[4] = fyz;
+        h[5] = fzz;
+    }
+    return bs->background + f;
+}
+
+double as_bspline_value_grad_hess_voxel(const as_bspline *bs, const double v[3], double g[3],
+                                        double h[6]) {
+    return as_eval_voxel(bs, v, 2, g, h);
+}
+
+/* World gradient from the voxel one: g_w[a] = sum_i g_v[i] (A^-1)_{i a}. */
+static void as_grad_to_world(const double ai[9], const double gv[3], double g[3]) {
+    for (int a = 0; a < 3; a++) g[a] = gv[0] * ai[a] + gv[1] * ai[3 + a] + gv[2] * ai[6 + a];
+}
+
+/* World Hessian from the voxel one: H_w = A^-T H_v A^-1. */
+static void as_hess_to_world(const double ai[9], const double hv[6], double h[6]) {
+    const double H[9] = {hv[0], hv[1], hv[2], hv[1], hv[3], hv[4], hv[2], hv[4], hv[5]};
+    double t[9]; /* H_v A^-1 */
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            t[3 * r + c] = H[3 * r] * ai[c] + H[3 * r + 1] * ai[3 + c] + H[3 * r + 2] * ai[6 + c];
+    /* (A^-T t)_{ab} = sum_i ai[i][a] t[i][b] */
+    static const int ia[6] = {0, 0, 0, 1, 1, 2}, ib[6] = {0, 1, 2, 1, 2, 2};
+    for (int k = 0; k < 6; k++) {
+        int a = ia[k], b = ib[k];
+        h[k] = ai[a] * t[b] + ai[3 + a] * t[3 + b] + ai[6 + a] * t[6 + b];
+    }
+}
+
+double as_bspline_value(const as_bspline *bs, const double p[3]) {
+    double v[3];
+    as_grid_world_to_voxel(&bs->grid, p, v);
+    return as_bspline_value_voxel(bs, v);
+}
+
+double as_bspline_value_grad(const as_bspline *bs, const double p[3], double g[3]) {
+    double v[3], gv[3];
+    as_grid_world_to_voxel(&bs->grid, p, v);
+    double f = as_eval_voxel(bs, v, 1, gv, NULL);
+    as_grad_to_world(bs->grid.ainv, gv, g);
+    return f;
+}
+
+double as_bspline_value_grad_hess(const as_bspline *bs, const double p[3], double g[3],
+                                  double h[6]) {
+    double v[3], gv[3], hv[6];
+    as_grid_world_to_voxel(&bs->grid, p, v);
+    double f = as_eval_voxel(bs, v, 2, gv, hv);
+    as_grad_to_world(bs->grid.ainv, gv, g);
+    as_hess_to_world(bs->grid.ainv, hv, h);
+    return f;
+}

@@ -1,0 +1,583 @@
+/*
+ * field.c — metric fields on a surface (DESIGN.md 4.7) and the SPEC parser of the
+ * command line's --metric (DESIGN.md 3). See field.h for the conventions.
+ */
+#include "surface/field.h"
+
+#include "geom/linalg.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- small helpers -------------------------------------------------------------- */
+
+static inline double v3_dot(const double a[3], const double b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static inline double v3_norm(const double a[3]) { return sqrt(v3_dot(a, a)); }
+static inline void v3_cross(const double a[3], const double b[3], double c[3]) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+static inline void sym_mul(const double h[6], const double v[3], double y[3]) {
+    y[0] = h[0] * v[0] + h[1] * v[1] + h[2] * v[2];
+    y[1] = h[1] * v[0] + h[3] * v[1] + h[4] * v[2];
+    y[2] = h[2] * v[0] + h[4] * v[1] + h[5] * v[2];
+}
+
+/* An orthonormal tangent pair (t1, t2) with (t1, t2, n) right-handed. */
+static void tangent_basis(const double n[3], double t1[3], double t2[3]) {
+    int k = 0;
+    for (int i = 1; i < 3; i++)
+        if (fabs(n[i]) < fabs(n[k])) k = i;
+    double e[3] = {0, 0, 0};
+    e[k] = 1;
+    v3_cross(n, e, t1);
+    double l = v3_norm(t1);
+    for (int i = 0; i < 3; i++) t1[i] /= l;
+    v3_cross(n, t1, t2);
+}
+
+/* Eigen-decomposition of the symmetric 2x2 [[a, b], [b, c]]: w1 >= w2, (cos, sin) of the
+ * eigenvector of w1. */
+static void eig2(double a, double b, double c, double *w1, double *w2, double *cs,
+                 double *sn) {
+    double mean = 0.5 * (a + c), r = hypot(0.5 * (a - c), b);
+    double th = 0.5 * atan2(2 * b, a - c);
+    *w1 = mean + r;
+    *w2 = mean - r;
+    *cs = cos(th);
+    *sn = sin(th);
+}
+
+static anistar_status fail_at(anistar_context *ctx, const char *what, const double p[3]) {
+    return as_fail(ctx, ANISTAR_EINVAL, "metric: %s at (%.17g, %.17g, %.17g)", what, p[0], p[1],
+                   p[2]);
+}
+
+void as_field_tensor(const double u[9], const double e[3], double m[6]) {
+    double emax = fmax(e[0], fmax(e[1], e[2])), lo = emax / AS_FIELD_MAX_ANISOTROPY;
+    double w[3];
+    for (int k = 0; k < 3; k++) {
+        double ek = e[k] < lo ? lo : e[k];
+        w[k] = ek * ek;
+    }
+    static const int ij[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    for (int t = 0; t < 6; t++) {
+        int i = ij[t][0], j = ij[t][1];
+        m[t] = w[0] * u[i] * u[j] + w[1] * u[3 + i] * u[3 + j] + w[2] * u[6 + i] * u[6 + j];
+    }
+}
+
+int as_field_check_tensor(double m[6]) {
+    for (int i = 0; i < 6; i++)
+        if (!isfinite(m[i])) return -1;
+    double w[3], v[9];
+    if (as_sym3_eigen(m, w, v)) return -1;
+    if (!(w[0] > 0) || !isfinite(w[2])) return -1;
+    double lim = AS_FIELD_MAX_ANISOTROPY * AS_FIELD_MAX_ANISOTROPY;
+    if (w[2] / w[0] <= lim) return 0;
+    double e[3];
+    for (int k = 0; k < 3; k++) e[k] = sqrt(w[k]);
+    as_field_tensor(v, e, m);
+    return 0;
+}
+
+/* ---- SPEC parsing --------------------------------------------------------------- */
+
+enum { OPT_EPS = 1, OPT_EN = 2, OPT_POWER = 4, OPT_PHI = 8, OPT_LAMBDA = 16, OPT_H = 32 };
+
+typedef struct fl_name {
+    const char *name;
+    as_field_kind kind;
+    int arg;  /* 1: NAME:ARG required, 0: no ARG */
+    int opts; /* allowed options */
+    const char *optlist;
+} fl_name;
+
+static const fl_name fl_names[] = {
+    {"euclidean", AS_FIELD_UNIFORM, 0, 0, "none"},
+    {"uniform", AS_FIELD_UNIFORM, 0, OPT_H, "h"},
+    {"curvature", AS_FIELD_CURVATURE, 0, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power"},
+    {"shock", AS_FIELD_GRADIENT, 0, OPT_LAMBDA | OPT_PHI | OPT_EN, "lambda, phi, en"},
+    {"gradient", AS_FIELD_GRADIENT, 1, OPT_PHI | OPT_EN, "phi, en"},
+    {"hessian", AS_FIELD_HESSIAN, 1, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power"},
+    {"sol", AS_FIELD_SOL, 1, 0, "none"},
+};
+#define FL_NAMES (sizeof fl_names / sizeof fl_names[0])
+
+static const char *const fl_known =
+    "euclidean, uniform, curvature, shock, gradient:EXPR, hessian:EXPR, sol:FILE";
+
+/* Trim spaces: [*b, *e) */
+static void trim(const char **b, const char **e) {
+    while (*b < *e && isspace((unsigned char)**b)) (*b)++;
+    while (*e > *b && isspace((unsigned char)(*e)[-1])) (*e)--;
+}
+
+static int clip_len(size_t n) { return (int)(n > 80 ? 80 : n); }
+
+void as_field_spec_clear(anistar_context *ctx, as_field_spec *sp) {
+    if (!sp) return;
+    as_expr_free(ctx, sp->expr);
+    as_free(ctx, sp->path, sp->path_size);
+    memset(sp, 0, sizeof *sp);
+}
+
+/* Compile an expression, prefixing the compiler's message with the metric's name. */
+static anistar_status compile_expr(anistar_context *ctx, const char *what, const char *src,
+                                   as_expr **out) {
+    anistar_status st = as_expr_compile(ctx, src, out);
+    if (st) {
+        char msg[AS_ERRMSG_SIZE];
+        snprintf(msg, sizeof msg, "%s", ctx->last_error);
+        return as_fail(ctx, st, "metric '%s': %s", what, msg);
+    }
+    return ANISTAR_OK;
+}
+
+static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, const char *b,
+                                   const char *e, as_field_spec *sp) {
+    trim(&b, &e);
+    const char *eq = memchr(b, '=', (size_t)(e - b));
+    if (!eq)
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': expected OPTION=VALUE, got '%.*s'",
+                       nm->name, clip_len((size_t)(e - b)), b);
+    const char *kb = b, *ke = eq, *vb = eq + 1, *ve = e;
+    trim(&kb, &ke);
+    trim(&vb, &ve);
+    static const struct {
+        const char *key;
+        int bit;
+    } keys[] = {{"eps", OPT_EPS}, {"en", OPT_EN},         {"power", OPT_POWER},
+                {"phi", OPT_PHI}, {"lambda", OPT_LAMBDA}, {"h", OPT_H}};
+    int bit = 0;
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
+        if (strlen(keys[i].key) == (size_t)(ke - kb) && !strncmp(keys[i].key, kb, (size_t)(ke - kb)))
+            bit = keys[i].bit;
+    if (!(bit & nm->opts))
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': unknown option '%.*s' (options: %s)",
+                       nm->name, clip_len((size_t)(ke - kb)), kb, nm->optlist);
+    char buf[64];
+    size_t vl = (size_t)(ve - vb);
+    double v = 0;
+    int ok = vl > 0 && vl < sizeof buf;
+    if (ok) {
+        memcpy(buf, vb, vl);
+        buf[vl] = '\0';
+        char *end;
+        errno = 0;
+        v = strtod(buf, &end);
+        ok = end == buf + vl && errno != ERANGE && isfinite(v);
+    }
+    if (!ok)
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s: '%.*s' is not a finite "
+                       "number", nm->name, clip_len((size_t)(ke - kb)), kb, clip_len(vl), vb);
+    double *dst;
+    int *has;
+    int positive = 1;
+    switch (bit) {
+    case OPT_EPS: dst = &sp->eps; has = &sp->has_eps; break;
+    case OPT_EN: dst = &sp->en; has = &sp->has_en; break;
+    case OPT_POWER: dst = &sp->power; has = &sp->has_power; break;
+    case OPT_PHI: dst = &sp->phi; has = &sp->has_phi; positive = 0; break;
+    case OPT_LAMBDA: dst = &sp->lambda; has = &sp->has_lambda; break;
+    default: dst = &sp->h; has = &sp->has_h; break;
+    }
+    if (*has)
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s given twice", nm->name,
+                       clip_len((size_t)(ke - kb)), kb);
+    if (positive ? !(v > 0) : !(v >= 0))
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s must be %s, got %g",
+                       nm->name, clip_len((size_t)(ke - kb)), kb, positive ? "> 0" : ">= 0", v);
+    *has = 1;
+    *dst = v;
+    return ANISTAR_OK;
+}
+
+anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out) {
+    memset(out, 0, sizeof *out);
+    if (!spec) return as_fail(ctx, ANISTAR_EINVAL, "metric: NULL spec");
+    /* Items split at commas of parenthesis depth 0. */
+    int depth = 0;
+    for (const char *c = spec; *c; c++) {
+        if (*c == '(') depth++;
+        if (*c == ')' && --depth < 0) break;
+    }
+    if (depth != 0)
+        return as_fail(ctx, ANISTAR_EFORMAT, "metric '%s': unbalanced parentheses", spec);
+    const char *end = spec;
+    for (depth = 0; *end && !(depth == 0 && *end == ','); end++) {
+        if (*end == '(') depth++;
+        if (*end == ')') depth--;
+    }
+    const char *hb = spec, *he = end;
+    trim(&hb, &he);
+    const char *colon = memchr(hb, ':', (size_t)(he - hb));
+    const char *nb = hb, *ne = colon ? colon : he;
+    trim(&nb, &ne);
+    if (nb == ne)
+        return as_fail(ctx, ANISTAR_EINVAL, "metric: empty name (expected %s)", fl_known);
+    const fl_name *nm = NULL;
+    for (size_t i = 0; i < FL_NAMES; i++)
+        if (strlen(fl_names[i].name) == (size_t)(ne - nb) &&
+            !strncmp(fl_names[i].name, nb, (size_t)(ne - nb)))
+            nm = &fl_names[i];
+    if (!nm)
+        return as_fail(ctx, ANISTAR_EINVAL, "unknown metric '%.*s' (expected %s)",
+                       clip_len((size_t)(ne - nb)), nb, fl_known);
+    out->kind = nm->kind;
+    out->name = nm->name;
+    const char *ab = colon ? colon + 1 : he, *ae = he;
+    trim(&ab, &ae);
+    if (nm->arg && ab == ae) {
+        as_fail(ctx, ANISTAR_EINVAL, "metric '%s' needs an argument: %s:%s", nm->name, nm->name,
+                nm->kind == AS_FIELD_SOL ? "FILE" : "EXPR");
+        return ANISTAR_EINVAL;
+    }
+    if (!nm->arg && colon)
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s' takes no ':' argument", nm->name);
+    anistar_status st = ANISTAR_OK;
+    for (const char *ob = end; *ob == ',' && !st;) {
+        const char *oe = ob + 1;
+        for (depth = 0; *oe && !(depth == 0 && *oe == ','); oe++) {
+            if (*oe == '(') depth++;
+            if (*oe == ')') depth--;
+        }
+        st = parse_option(ctx, nm, ob + 1, oe, out);
+        ob = oe;
+    }
+    if (st) {
+        as_field_spec_clear(ctx, out);
+        return st;
+    }
+    size_t alen = (size_t)(ae - ab);
+    if (nm->kind == AS_FIELD_GRADIENT || nm->kind == AS_FIELD_HESSIAN) {
+        char small[256], *src = small;
+        size_t srcsize = 0;
+        if (!nm->arg) { /* shock: the paper's field E with lambda */
+            double lambda = out->has_lambda ? out->lambda : 0.6;
+            snprintf(small, sizeof small, "L=%.17g; tanh((2*x-sin(5*y))/L)+x^3+x*y^2", lambda);
+        } else if (alen < sizeof small) {
+            memcpy(small, ab, alen);
+            small[alen] = '\0';
+        } else {
+            srcsize = alen + 1;
+            src = as_alloc(ctx, srcsize);
+            if (!src) return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory");
+            memcpy(src, ab, alen);
+            src[alen] = '\0';
+        }
+        st = compile_expr(ctx, nm->name, src, &out->expr);
+        if (srcsize) as_free(ctx, src, srcsize);
+    } else if (nm->kind == AS_FIELD_SOL) {
+        out->path_size = alen + 1;
+        out->path = as_alloc(ctx, out->path_size);
+        if (!out->path) {
+            out->path_size = 0;
+            st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory");
+        } else {
+            memcpy(out->path, ab, alen);
+            out->path[alen] = '\0';
+        }
+    }
+    if (st) as_field_spec_clear(ctx, out);
+    return st;
+}
+
+/* ---- local evaluation ----------------------------------------------------------- */
+
+/* The tangential part of a field at p. */
+typedef struct fl_local {
+    int singular;      /* grad f vanishes: no normal */
+    double u[9];       /* u1, u2 (tangent eigenvectors), n */
+    double e1, e2;     /* tangential eigenvalues of F */
+    double raw;        /* largest raw tangential quantity: |k|, |g|, w */
+    double eiso;       /* singular points: the largest eigenvalue computable without n */
+} fl_local;
+
+static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, const double p[3],
+                                    fl_local *L) {
+    memset(L, 0, sizeof *L);
+    const as_surface *s = fl->surf;
+    anistar_status st;
+    if (fl->kind == AS_FIELD_CURVATURE) {
+        as_surface_frame fr;
+        st = as_surface_frame_at(ctx, s, p, &fr);
+        if (st) return st;
+        if (fr.singular) {
+            L->singular = 1;
+            return ANISTAR_OK;
+        }
+        memcpy(L->u, fr.d, 6 * sizeof(double));
+        memcpy(L->u + 6, fr.n, 3 * sizeof(double));
+        L->e1 = pow(fmax(fl->eps, fabs(fr.k[0])), fl->power);
+        L->e2 = pow(fmax(fl->eps, fabs(fr.k[1])), fl->power);
+        L->raw = fmax(fabs(fr.k[0]), fabs(fr.k[1]));
+        return ANISTAR_OK;
+    }
+    /* gradient and hessian: the normal of S, then E's derivatives */
+    double *n = L->u + 6, *u1 = L->u, *u2 = L->u + 3;
+    st = as_surface_normal_at(ctx, s, p, n, &L->singular);
+    if (st) return st;
+    if (fl->kind == AS_FIELD_GRADIENT) {
+        double gE[3];
+        double E = as_expr_value_grad(fl->expr, p, gE);
+        if (!isfinite(E) || !isfinite(gE[0]) || !isfinite(gE[1]) || !isfinite(gE[2]))
+            return fail_at(ctx, "the scalar field or its gradient is not finite", p);
+        if (L->singular) {
+            L->eiso = 1 + fl->phi * v3_norm(gE);
+            return ANISTAR_OK;
+        }
+        double gnE = v3_dot(gE, n), gt[3];
+        for (int i = 0; i < 3; i++) gt[i] = gE[i] - gnE * n[i];
+        double gtn = v3_norm(gt);
+        L->raw = gtn;
+        if (gtn > 0) {
+            for (int i = 0; i < 3; i++) u1[i] = gt[i] / gtn;
+            v3_cross(n, u1, u2);
+        } else {
+            tangent_basis(n, u1, u2);
+        }
+        L->e1 = 1 + fl->phi * gtn;
+        L->e2 = 1;
+        return ANISTAR_OK;
+    }
+    /* hessian */
+    double gE[3], hE[6];
+    double E = as_expr_value_grad_hess(fl->expr, p, gE, hE);
+    int fin = isfinite(E);
+    for (int i = 0; i < 6; i++) fin = fin && isfinite(hE[i]);
+    if (!fin) return fail_at(ctx, "the scalar field or its Hessian is not finite", p);
+    double w[3], v[9], habs[6];
+    if (as_sym3_eigen(hE, w, v)) return fail_at(ctx, "the Hessian is not finite", p);
+    for (int k = 0; k < 3; k++) w[k] = fabs(w[k]);
+    as_sym3_from_eigen(w, v, habs);
+    if (L->singular) {
+        double wm = fmax(w[0], fmax(w[1], w[2]));
+        L->eiso = pow(fmax(fl->eps, wm), fl->power);
+        return ANISTAR_OK;
+    }
+    double t1[3], t2[3], h1[3], h2[3];
+    tangent_basis(n, t1, t2);
+    sym_mul(habs, t1, h1);
+    sym_mul(habs, t2, h2);
+    double w1, w2, cs, sn;
+    eig2(v3_dot(t1, h1), 0.5 * (v3_dot(t1, h2) + v3_dot(t2, h1)), v3_dot(t2, h2), &w1, &w2, &cs,
+         &sn);
+    if (w2 < 0) w2 = 0; /* T^T |H| T is positive semi-definite: only rounding goes below */
+    for (int i = 0; i < 3; i++) u1[i] = cs * t1[i] + sn * t2[i];
+    v3_cross(n, u1, u2);
+    L->raw = w1;
+    L->e1 = pow(fmax(fl->eps, w1), fl->power);
+    L->e2 = pow(fmax(fl->eps, w2), fl->power);
+    return ANISTAR_OK;
+}
+
+static inline int fl_usable(double e) { return isfinite(e) && e <= AS_FIELD_MAX_EIGENVALUE; }
+
+static void iso(double e, double m[6]) {
+    m[0] = m[3] = m[5] = e * e;
+    m[1] = m[2] = m[4] = 0;
+}
+
+anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const double p[3],
+                             double m[6]) {
+    if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+        return as_fail(ctx, ANISTAR_EINVAL, "metric: point is not finite");
+    switch (fl->kind) {
+    case AS_FIELD_UNIFORM:
+        memcpy(m, fl->m, 6 * sizeof(double));
+        return ANISTAR_OK;
+    case AS_FIELD_CUSTOM: {
+        double n[3];
+        int singular;
+        anistar_status st = as_surface_normal_at(ctx, fl->surf, p, n, &singular);
+        if (st) return st;
+        double t[6] = {0, 0, 0, 0, 0, 0};
+        if (fl->fn(p, n, t, fl->user)) return fail_at(ctx, "the metric callback failed", p);
+        for (int i = 0; i < 6; i++)
+            if (!isfinite(t[i]))
+                return fail_at(ctx, "the metric callback returned a non-finite tensor", p);
+        if (as_field_check_tensor(t))
+            return fail_at(ctx, "the metric callback returned a tensor that is not positive "
+                                "definite", p);
+        memcpy(m, t, sizeof t);
+        return ANISTAR_OK;
+    }
+    case AS_FIELD_CURVATURE:
+    case AS_FIELD_GRADIENT:
+    case AS_FIELD_HESSIAN: {
+        fl_local L;
+        anistar_status st = fl_local_eval(ctx, fl, p, &L);
+        if (st) return st;
+        if (L.singular) {
+            iso(fl_usable(L.eiso) ? fmax(fl->en, L.eiso) : fl->en, m);
+            return ANISTAR_OK;
+        }
+        if (!fl_usable(L.e1) || !fl_usable(L.e2)) {
+            iso(fl->en, m);
+            return ANISTAR_OK;
+        }
+        double e[3] = {L.e1, L.e2, fl->en};
+        as_field_tensor(L.u, e, m);
+        return ANISTAR_OK;
+    }
+    default:
+        return as_fail(ctx, ANISTAR_EINTERNAL, "metric: unknown field kind");
+    }
+}
+
+/* ---- creation ------------------------------------------------------------------- */
+
+static anistar_status fl_new(anistar_context *ctx, const as_surface *s, as_field_kind kind,
+                             as_field **out) {
+    *out = NULL;
+    as_field *fl = as_alloc(ctx, sizeof *fl);
+    if (!fl) return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory");
+    memset(fl, 0, sizeof *fl);
+    fl->ctx = ctx;
+    fl->surf = s;
+    fl->kind = kind;
+    *out = fl;
+    return ANISTAR_OK;
+}
+
+void as_field_free(as_field *fl) {
+    if (!fl) return;
+    anistar_context *ctx = fl->ctx;
+    as_expr_free(ctx, fl->expr);
+    as_free(ctx, fl, sizeof *fl);
+}
+
+anistar_status as_field_uniform(anistar_context *ctx, const as_surface *s, const double m[6],
+                                as_field **out) {
+    *out = NULL;
+    double t[6];
+    memcpy(t, m, sizeof t);
+    if (as_field_check_tensor(t))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "uniform metric: tensor (%g %g %g %g %g %g) is not finite and positive "
+                       "definite",
+                       m[0], m[1], m[2], m[3], m[4], m[5]);
+    as_field *fl;
+    anistar_status st = fl_new(ctx, s, AS_FIELD_UNIFORM, &fl);
+    if (st) return st;
+    memcpy(fl->m, t, sizeof t);
+    *out = fl;
+    return ANISTAR_OK;
+}
+
+anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_field_fn fn,
+                               void *user, as_field **out) {
+    *out = NULL;
+    if (!s || !fn) return as_fail(ctx, ANISTAR_EINVAL, "custom metric: NULL surface or callback");
+    as_field *fl;
+    anistar_status st = fl_new(ctx, s, AS_FIELD_CUSTOM, &fl);
+    if (st) return st;
+    fl->fn = fn;
+    fl->user = user;
+    *out = fl;
+    return ANISTAR_OK;
+}
+
+/*
+ * Defaults from the initial sample (paper 5.4): hessian's eps (1e-3 times the largest
+ * tangential |H| eigenvalue, 1 if that is 0) when need_eps, then e_n = the largest
+ * tangential eigenvalue of F over the sample when need_en.
+ */
+static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_eps,
+                                  int need_en) {
+    as_point_sample smp;
+    anistar_status st = as_surface_sample(ctx, fl->surf, AS_FIELD_SAMPLE_POINTS, &smp);
+    if (st) {
+        char msg[AS_ERRMSG_SIZE];
+        snprintf(msg, sizeof msg, "%s", ctx->last_error);
+        return as_fail(ctx, st, "metric: cannot sample the surface for default e_n: %s", msg);
+    }
+    if (need_eps) {
+        double raw = 0;
+        fl->eps = 1; /* any positive value: raw does not depend on it */
+        for (size_t i = 0; i < smp.n && !st; i++) {
+            fl_local L;
+            st = fl_local_eval(ctx, fl, smp.points + 3 * i, &L);
+            if (!st && !L.singular && fl_usable(L.raw) && L.raw > raw) raw = L.raw;
+        }
+        fl->eps = raw > 0 ? 1e-3 * raw : 1.0;
+    }
+    if (need_en && !st) {
+        double en = 0;
+        for (size_t i = 0; i < smp.n && !st; i++) {
+            fl_local L;
+            st = fl_local_eval(ctx, fl, smp.points + 3 * i, &L);
+            if (st || L.singular || !fl_usable(L.e1) || !fl_usable(L.e2)) continue;
+            en = fmax(en, fmax(L.e1, L.e2));
+        }
+        fl->en = en > 0 ? en : 1.0;
+    }
+    as_surface_sample_free(ctx, &smp);
+    return st;
+}
+
+anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
+                                  as_field **out) {
+    *out = NULL;
+    as_field_spec sp;
+    anistar_status st = as_field_spec_parse(ctx, spec, &sp);
+    if (st) return st;
+    if (sp.kind == AS_FIELD_SOL) {
+        st = as_fail(ctx, ANISTAR_EINVAL,
+                     "metric 'sol:%s': per-vertex tensors (.sol) need a triangle-mesh "
+                     "surface; not supported yet for implicit surfaces",
+                     sp.path);
+        as_field_spec_clear(ctx, &sp);
+        return st;
+    }
+    if (sp.kind == AS_FIELD_UNIFORM) {
+        double h = sp.has_h ? sp.h : 1.0, v = 1.0 / (h * h);
+        double m[6] = {v, 0, 0, v, 0, v};
+        as_field_spec_clear(ctx, &sp);
+        return as_field_uniform(ctx, s, m, out);
+    }
+    if (!s) {
+        as_field_spec_clear(ctx, &sp);
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s' needs a surface", sp.name);
+    }
+    as_field *fl;
+    st = fl_new(ctx, s, sp.kind, &fl);
+    if (st) {
+        as_field_spec_clear(ctx, &sp);
+        return st;
+    }
+    fl->expr = sp.expr;
+    sp.expr = NULL;
+    int need_eps = 0;
+    switch (sp.kind) {
+    case AS_FIELD_CURVATURE:
+        fl->eps = sp.has_eps ? sp.eps : 1.0 / s->radius;
+        fl->power = sp.has_power ? sp.power : 1.0;
+        break;
+    case AS_FIELD_GRADIENT:
+        fl->phi = sp.has_phi ? sp.phi : 1.0;
+        break;
+    default: /* hessian */
+        fl->power = sp.has_power ? sp.power : 0.5;
+        if (sp.has_eps) fl->eps = sp.eps;
+        else need_eps = 1;
+        break;
+    }
+    fl->en = sp.has_en ? sp.en : 0;
+    if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, need_eps, !sp.has_en);
+    as_field_spec_clear(ctx, &sp);
+    if (st) {
+        as_field_free(fl);
+        return st;
+    }
+    *out = fl;
+    return ANISTAR_OK;
+}

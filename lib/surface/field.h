@@ -1,0 +1,128 @@
+/*
+ * field.h — internal: metric fields on a surface (DESIGN.md 4.7, paper 5.2.1, 5.2.2, 5.4),
+ * and the SPEC strings of the command line's --metric (DESIGN.md 3).
+ *
+ * A field maps a point p of S to a metric tensor M_p = F^T F (6 doubles m11 m12 m13 m22
+ * m23 m33). Every tensor it returns is symmetric positive definite with finite entries
+ * and an eigenvalue ratio of F of at most AS_FIELD_MAX_ANISOTROPY (M's: its square):
+ * smaller eigenvalues of F are raised to (largest / AS_FIELD_MAX_ANISOTROPY).
+ *
+ * Kinds (F = U diag(e) U^T with U = [u1, u2, n], n the outward normal):
+ *  - uniform: a constant tensor (euclidean: I; uniform,h=H: I/H^2);
+ *  - custom: a callback (p, normal, m, user);
+ *  - curvature (paper 5.2.2): u1, u2 the principal directions, e_i = max(eps, |k_i|)^power;
+ *  - gradient:EXPR and shock (paper 5.2.1 corrected, DESIGN.md 4.7): g = the tangential
+ *    part of grad E; e = 1 + phi |g| along g, 1 across it;
+ *  - hessian:EXPR: |H| = V |Lambda| V^T of the Hessian of E, restricted to the tangent
+ *    plane (2x2: T^T |H| T), its eigenvalues w_i: e_i = max(eps, w_i)^power;
+ *  - e_n, F's eigenvalue along the normal (paper 5.4), defaults to the largest tangential
+ *    eigenvalue e_1 over the initial sample of S (as_surface_sample, 256 points) for the
+ *    kinds curvature, gradient, shock, hessian; option en=N sets it.
+ * Special points:
+ *  - umbilic points (equal eigenvalues): any orthonormal tangent frame gives the same
+ *    tensor, so the tensor is well defined;
+ *  - flat and parabolic points: the eps clamp keeps the eigenvalues positive;
+ *  - singular points of f (grad f = 0, no normal): the isotropic tensor e^2 I with e the
+ *    largest eigenvalue the field would use there: max(e_n, tangential eigenvalues
+ *    computed without projection); also where a tangential eigenvalue is not finite or
+ *    exceeds AS_FIELD_MAX_EIGENVALUE (next to a singular point): e_n^2 I.
+ * Points off S: the field is evaluated at p as given, with the normal and curvatures of
+ * the level set of f through p (project first for the value on S).
+ *
+ * A field keeps a pointer to its surface (not owned): the surface must outlive it.
+ * A field is immutable after creation; evaluation is safe from several threads at once
+ * (custom callbacks permitting), each thread passing its own context.
+ */
+#ifndef ANISTAR_FIELD_H
+#define ANISTAR_FIELD_H
+
+#include "core.h"
+#include "surface/expr.h"
+#include "surface/surface.h"
+
+#define AS_FIELD_MAX_ANISOTROPY 1e6
+#define AS_FIELD_MAX_EIGENVALUE 1e150
+/* Points of the initial sample used for default e_n and eps. */
+#define AS_FIELD_SAMPLE_POINTS 256
+
+typedef struct anistar_metric as_field;
+
+/* A custom field: fill m (6 doubles) at p; normal is the outward unit normal, or
+ * (0, 0, 0) at a singular point. Returns 0 on success, nonzero on failure. */
+typedef int (*as_field_fn)(const double p[3], const double normal[3], double m[6], void *user);
+
+typedef enum as_field_kind {
+    AS_FIELD_UNIFORM,
+    AS_FIELD_CUSTOM,
+    AS_FIELD_CURVATURE,
+    AS_FIELD_GRADIENT, /* gradient:EXPR and shock */
+    AS_FIELD_HESSIAN,
+    AS_FIELD_SOL
+} as_field_kind;
+
+/* A parsed SPEC. Options not given keep has_* = 0. */
+typedef struct as_field_spec {
+    as_field_kind kind;
+    const char *name; /* static: "euclidean", "uniform", "curvature", "shock", ... */
+    double eps, en, power, phi, lambda, h;
+    int has_eps, has_en, has_power, has_phi, has_lambda, has_h;
+    as_expr *expr; /* gradient, hessian, shock (owned) */
+    char *path;    /* sol (owned, path_size bytes) */
+    size_t path_size;
+} as_field_spec;
+
+/*
+ * Parse a SPEC (the command line's --metric):
+ *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]
+ *   | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
+ *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE
+ * Options follow the name (or the expression) after commas at parenthesis depth 0, as
+ * NAME=VALUE with a finite number; spaces around names and values are allowed.
+ * Returns EINVAL for an unknown metric name or option, a repeated option, a bad value
+ * (eps, en, h, lambda, power > 0, phi >= 0) or a missing expression; EFORMAT for a
+ * malformed expression or unbalanced parentheses; ENOMEM. Messages name the culprit.
+ */
+anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out);
+void as_field_spec_clear(anistar_context *ctx, as_field_spec *sp);
+
+struct anistar_metric {
+    anistar_context *ctx;    /* the creating context (memory; public error messages) */
+    const as_surface *surf;  /* not owned; may be NULL for uniform fields */
+    as_field_kind kind;
+    double m[6];             /* uniform */
+    as_field_fn fn;          /* custom */
+    void *user;
+    as_expr *expr;           /* gradient, hessian (owned) */
+    double eps, power, phi, en;
+};
+
+/* A field parsed from spec on surface s (which must outlive it). Computes the default e_n
+ * (and hessian's default eps) from the initial sample of s, so it may return the
+ * sampler's errors (ENOSURFACE, EINVAL). sol:FILE returns EINVAL (per-vertex tensors need
+ * a triangle-mesh surface: not supported yet for implicit surfaces). */
+anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
+                                  as_field **out);
+/* A constant tensor (validated: finite, SPD; anisotropy clamped). s may be NULL. */
+anistar_status as_field_uniform(anistar_context *ctx, const as_surface *s, const double m[6],
+                                as_field **out);
+/* A custom callback field on s. */
+anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_field_fn fn,
+                               void *user, as_field **out);
+void as_field_free(as_field *f);
+
+/*
+ * The tensor at p. EINVAL (naming p) when f or E is not finite there, when a custom
+ * callback fails or returns a non-finite or non-positive-definite tensor.
+ */
+anistar_status as_field_eval(anistar_context *ctx, const as_field *f, const double p[3],
+                             double m[6]);
+
+/* M = U diag(e^2) U^T for the orthonormal frame u (u + 3k belongs to e[k]) after the
+ * anisotropy clamp of e. */
+void as_field_tensor(const double u[9], const double e[3], double m[6]);
+
+/* Validate a tensor (finite, SPD) and clamp its anisotropy in place (M's eigenvalue ratio
+ * at most AS_FIELD_MAX_ANISOTROPY^2; untouched if within). Returns 0, or -1 if invalid. */
+int as_field_check_tensor(double m[6]);
+
+#endif /* ANISTAR_FIELD_H */

@@ -1,0 +1,277 @@
+/*
+ * surface.h — internal: the surface oracle (DESIGN.md 4.6, paper 5: "an oracle able to
+ * compute a few initial points on the surface and to detect and compute the intersections
+ * between a given line segment and the surface").
+ *
+ * Every surface kind (implicit functions and expressions now; triangle meshes and 3D
+ * images later) is an as_surface whose first member is this common header and whose
+ * behaviour is a table of operations (as_surface_ops). The public opaque handle
+ * anistar_surface IS this structure.
+ *
+ * Conventions shared by every kind:
+ *  - S is the boundary of the inside region {p : |p - center| <= radius and f(p) < 0}:
+ *    f < 0 inside, and everything beyond the bounding sphere counts as outside. S must lie
+ *    strictly inside the bounding sphere (f > 0 on the sphere); the sampler reports
+ *    ANISTAR_EINVAL when it finds f < 0 on the sphere.
+ *  - The normal is the OUTWARD unit normal +grad f/|grad f| (the paper's N of 5.2.2 is
+ *    its opposite). Principal curvatures are the eigenvalues of P (H/|grad f|) P on the
+ *    tangent plane (paper 5.2.2), so they are positive where S is convex (sphere of
+ *    radius r: +1/r) and of opposite signs at saddle points.
+ *  - Lengths are judged against tol = AS_SURFACE_REL_TOL * radius (roots, projections).
+ *  - A surface is immutable after creation. Every operation takes it const and keeps its
+ *    state on the caller's stack, so one surface may be queried from several threads at
+ *    once, each thread passing its own context (ctx receives error messages only; it may
+ *    be NULL). Callback surfaces are as thread-safe as the user's callbacks.
+ *  - A function value that is NaN or infinite is an error (ANISTAR_EINVAL naming the
+ *    point), never a sign.
+ */
+#ifndef ANISTAR_SURFACE_H
+#define ANISTAR_SURFACE_H
+
+#include "core.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* Relative tolerance of roots and projections: |x - x*| <= 1e-12 * bounding radius. */
+#define AS_SURFACE_REL_TOL 1e-12
+
+typedef struct anistar_surface as_surface;
+
+/* The local differential geometry of S (or of the level set of f) at a point. */
+typedef struct as_surface_frame {
+    double n[3];   /* outward unit normal */
+    double k[2];   /* principal curvatures, k[0] >= k[1] */
+    double d[6];   /* unit principal directions: d (of k[0]) and d + 3 (of k[1]); (d, d+3, n)
+                      is a right-handed orthonormal frame */
+    double gnorm;  /* |grad f| at the point */
+    int singular;  /* 1 where grad f vanishes (|grad f| <= DBL_MIN): n, k, d are 0 then */
+} as_surface_frame;
+
+/* Points on S from as_surface_sample (initial points). */
+typedef struct as_point_sample {
+    double *points;       /* 3 * n coordinates, each point on S within tol */
+    int32_t *component;   /* n component ids in [0, ncomponents) */
+    size_t n;             /* number of points (>= ncomponents) */
+    size_t ncomponents;   /* connected components found */
+    double spacing;       /* the finest grid spacing used (see as_surface_sample) */
+} as_point_sample;
+
+typedef struct as_surface_ops {
+    const char *kind; /* "implicit", "expression", later "mesh", "image" */
+    /*
+     * f at p; with order >= 1 also grad f in g, with order 2 also the Hessian in h
+     * (m11 m12 m13 m22 m23 m33). NULL for kinds not given by a function (triangle
+     * meshes): such kinds must provide every operation below. May return NaN: callers
+     * check. Must be const-safe (no writes to s).
+     */
+    double (*eval)(const as_surface *s, const double p[3], int order, double g[3],
+                   double h[6]);
+    /* Optional overrides; NULL selects the generic implementation built on eval (see the
+     * functions of the same name below for their contracts). */
+    anistar_status (*side)(anistar_context *ctx, const as_surface *s, const double p[3],
+                           int *side);
+    anistar_status (*crossing)(anistar_context *ctx, const as_surface *s, const double a[3],
+                               const double b[3], const double ref[3], int *found,
+                               double x[3]);
+    anistar_status (*project)(anistar_context *ctx, const as_surface *s, const double p[3],
+                              double q[3]);
+    anistar_status (*frame)(anistar_context *ctx, const as_surface *s, const double p[3],
+                            as_surface_frame *fr);
+    anistar_status (*sample)(anistar_context *ctx, const as_surface *s, size_t max_points,
+                             as_point_sample *out);
+    /* Free the kind's data and the object itself (with s->ctx's allocator). */
+    void (*destroy)(as_surface *s);
+} as_surface_ops;
+
+/* The common header: the first member of every surface kind. */
+struct anistar_surface {
+    const as_surface_ops *ops;
+    anistar_context *ctx; /* the creating context: its allocator owns the object */
+    double center[3];     /* bounding sphere */
+    double radius;
+    double tol;           /* AS_SURFACE_REL_TOL * radius */
+};
+
+/* Fill the common header (kinds call it from their constructors). Returns EINVAL for a
+ * non-finite center or a radius that is not finite and > 0. */
+anistar_status as_surface_init(anistar_context *ctx, as_surface *s, const as_surface_ops *ops,
+                               const double center[3], double radius);
+
+/* Free a surface of any kind (NULL is ok). */
+void as_surface_free(as_surface *s);
+
+/*
+ * f (and grad f with order >= 1, the Hessian with order 2; g, h may be NULL when not
+ * requested) at p. Returns EINVAL, naming p, when a requested quantity is not finite or
+ * when the surface has no function (eval == NULL).
+ */
+anistar_status as_surface_eval(anistar_context *ctx, const as_surface *s, const double p[3],
+                               int order, double *f, double g[3], double h[6]);
+
+/*
+ * Side of p: *side = -1 inside (f < 0), +1 outside (f > 0 or p beyond the bounding
+ * sphere), 0 on S (f == 0 exactly). EINVAL naming p when f(p) is NaN or infinite.
+ */
+anistar_status as_surface_side(anistar_context *ctx, const as_surface *s, const double p[3],
+                               int *side);
+
+/*
+ * The crossing of the segment [a, b] with S nearest ref (usually a point near the
+ * segment: the mesher passes a facet's circumcenter).
+ * Returns OK with *found = 1 and the point in x, or *found = 0 when the segment does not
+ * meet S; EINVAL when f is not finite at a point visited (named in the message).
+ * notes:
+ *  - Every sign change of f along the chord found by the sampling below is a crossing;
+ *    each is refined by the Illinois method to |x - x*| <= tol.
+ *  - A segment that touches S without crossing it (f keeps its sign, a double root) is
+ *    reported as crossing it at the touching point when the sampling sees the valley and
+ *    a minimisation of |f| there reaches |f|/|grad f| <= tol; a segment passing farther
+ *    than that from S is reported as not meeting it.
+ *  - Where f < 0 on the bounding sphere (S leaks out of it) the inside region is clipped
+ *    by the sphere, so a chord entering the ball where f < 0 crosses at the sphere.
+ * design:
+ *  1. clip [a, b] to the bounding ball (the part beyond is outside, f > 0);
+ *  2. sample the chord with spacing <= AS_CROSSING_SPACING * radius (1 to 64 pieces),
+ *     f and its derivative along the chord at each sample;
+ *  3. adaptive sampling: on each piece build the cubic Hermite interpolant of the two end
+ *     values and slopes; split a piece (down to 1e-7 * radius) when the cubic predicts
+ *     more roots than the end signs show: three roots where the signs differ, or a valley
+ *     dipping below half the smaller end value where they agree; a valley piece shorter
+ *     than 1/8 of the base spacing is minimised (golden section) and split at its
+ *     minimum if f changes sign there;
+ *  4. refine the bracket nearest ref first; other brackets only if they may hold a
+ *     nearer root.
+ * limits: two crossings closer together than the resolution of the Hermite test within
+ *  one base piece can be missed (their valley must dip below half the end values to be
+ *  seen); the evaluation budget is AS_CROSSING_MAX_EVALS per call, after which pieces
+ *  are no longer split.
+ */
+#define AS_CROSSING_SPACING (1.0 / 32.0)
+#define AS_CROSSING_MAX_EVALS 2048
+anistar_status as_surface_crossing(anistar_context *ctx, const as_surface *s, const double a[3],
+                                   const double b[3], const double ref[3], int *found,
+                                   double x[3]);
+
+/*
+ * Projection of p onto S: a point q with |f(q)|/|grad f(q)| <= tol which is the closest
+ * point of S to p whenever the iteration below converges (p closer to S than its local
+ * radius of curvature and the nearest point unique); otherwise a nearby foot point.
+ * Returns EINVAL (non-finite f), ENOSURFACE (no zero of f found along the gradient line
+ * through p nor along the line to the center).
+ * design:
+ *  1. Newton steps along the gradient, x -= f grad f/|grad f|^2, each step at most
+ *     radius/4, halved until |f| decreases;
+ *  2. if Newton stalls: bracketed root finding (as_surface_crossing) along the gradient
+ *     line through the best iterate, then along the line to the center;
+ *  3. closest point: repeat x <- proj(x + P(p - x)) (P the tangent projector at x) while
+ *     |p - x| decreases and the tangential part of p - x exceeds tol.
+ */
+anistar_status as_surface_project(anistar_context *ctx, const as_surface *s, const double p[3],
+                                  double q[3]);
+
+/* Outward unit normal at p (the gradient direction of the level set through p). EINVAL
+ * when grad f vanishes or is not finite at p. */
+anistar_status as_surface_normal(anistar_context *ctx, const as_surface *s, const double p[3],
+                                 double n[3]);
+/* The same for every kind, without failing at singular points: *singular = 1 and n = 0
+ * where grad f vanishes (|grad f| <= DBL_MIN). Function kinds need only first
+ * derivatives; kinds without eval use their frame op. */
+anistar_status as_surface_normal_at(anistar_context *ctx, const as_surface *s,
+                                    const double p[3], double n[3], int *singular);
+
+/*
+ * Normal, principal curvatures and directions of the level set of f through p (S itself
+ * when p is on S): eigen-decomposition of the 2x2 matrix t_i^T H t_j / |grad f| in a
+ * tangent basis (paper 5.2.2). At umbilic points any orthonormal tangent pair is
+ * returned. Where grad f vanishes: OK with fr->singular = 1. EINVAL for non-finite f,
+ * grad f or Hessian.
+ */
+anistar_status as_surface_frame_at(anistar_context *ctx, const as_surface *s, const double p[3],
+                                   as_surface_frame *fr);
+
+/*
+ * Initial points: a coarse sample of S with points on every connected component found.
+ * About max_points points (0 means 64): each component gets a share proportional to its
+ * number of grid crossings and at least one, so n <= max_points + ncomponents. The arrays are
+ * allocated with ctx's allocator: free them with as_surface_sample_free(ctx, out).
+ * Returns ENOSURFACE when no component is found, EINVAL when f is not finite at a
+ * sample or f < 0 on the bounding sphere (S not inside it), ENOMEM.
+ * design:
+ *  1. a grid of n^3 cubes over the bounding cube, n = 32, 64, 128; vertices beyond the
+ *     sphere count as outside;
+ *  2. union-find of the inside vertices and of the outside vertices (6-neighbours); each
+ *     grid edge with a sign change links an inside and an outside region, and each pair
+ *     (inside region, outside region) is one component of S;
+ *  3. sub-grid components: from every grid vertex that is a local minimum of f > 0
+ *     (maximum of f < 0) among its 6 neighbours (ties allowed; at most 4096 per grid),
+ *     descend (ascend) f within two cells by Newton and gradient steps; reaching f < 0
+ *     (> 0) with no inside (outside) vertex in the cell reached, and farther than a cell
+ *     from the previous finds, adds a component;
+ *  4. stop when two successive grids find the same nonzero number of components;
+ *  5. per component, pick sign-change edges by farthest-point sampling of their
+ *     midpoints (quota proportional to the number of edges, at least one) and refine the
+ *     crossing on each.
+ * guarantee (minimum feature size): with spacing h = radius/64 on the finest grid, every
+ * component whose inside (or, for a cavity, outside) region contains a ball of radius
+ * h*sqrt(3)/2 holds a grid vertex and is found; smaller components are found when f has a
+ * local extremum on the grid near them from which the descent reaches them (typical of
+ * distance-like functions). Components closer than a grid cell may be merged.
+ */
+anistar_status as_surface_sample(anistar_context *ctx, const as_surface *s, size_t max_points,
+                                 as_point_sample *out);
+void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp);
+
+/* ---- generic implementations for function-based kinds (used when an op is NULL) ---- */
+anistar_status as_fsurface_side(anistar_context *ctx, const as_surface *s, const double p[3],
+                                int *side);
+anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
+                                    const double a[3], const double b[3], const double ref[3],
+                                    int *found, double x[3]);
+anistar_status as_fsurface_project(anistar_context *ctx, const as_surface *s, const double p[3],
+                                   double q[3]);
+anistar_status as_fsurface_frame(anistar_context *ctx, const as_surface *s, const double p[3],
+                                 as_surface_frame *fr);
+anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, size_t max_points,
+                                  as_point_sample *out);
+
+/* ---- implicit surfaces (implicit.c) ---------------------------------------------- */
+
+/* Callbacks of an implicit function (the public anistar_implicit_fn has this layout). */
+typedef struct as_implicit_fn {
+    double (*value)(const double p[3], void *user);
+    void (*gradient)(const double p[3], double g[3], void *user);  /* may be NULL */
+    void (*hessian)(const double p[3], double h[6], void *user);   /* may be NULL */
+    void *user;
+} as_implicit_fn;
+
+/*
+ * An implicit surface from callbacks. Missing derivatives come from central finite
+ * differences with steps relative to the bounding radius R:
+ *  - gradient from values: step 6e-6 R (about cbrt(DBL_EPSILON) R), relative accuracy
+ *    about 1e-10 for functions smooth at scale R;
+ *  - Hessian from the gradient callback: step 6e-6 R, accuracy about 1e-10;
+ *  - Hessian from values only: step 1.2e-4 R (about DBL_EPSILON^(1/4) R), accuracy about
+ *    1e-8 (second differences).
+ */
+anistar_status as_implicit_create(anistar_context *ctx, const as_implicit_fn *fn,
+                                  const double center[3], double radius, as_surface **out);
+
+/* An implicit surface f(x,y,z) = 0 from an expression (expr.h): exact derivatives. */
+anistar_status as_implicit_from_expression(anistar_context *ctx, const char *expr,
+                                           const double center[3], double radius,
+                                           as_surface **out);
+
+/*
+ * A built-in surface from a spec "NAME[,PARAM=VALUE]...", e.g. "torus,R=5,r=2". Every
+ * built-in also takes bound=RADIUS (its bounding sphere, centred at the origin).
+ * EINVAL for an unknown name or parameter or an invalid value (message lists the valid
+ * ones).
+ */
+anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_surface **out);
+
+/* The i-th built-in: name and a one-line description (formula, parameters with
+ * defaults, bounding radius, topology). Returns 0, or -1 past the last one. */
+int as_implicit_builtin_info(size_t i, const char **name, const char **description);
+
+#endif /* ANISTAR_SURFACE_H */

@@ -1,0 +1,623 @@
+/*
+ * test_bspline.c — the cubic B-spline reconstruction (lib/surface/bspline.c):
+ * interpolation at voxel centers (inside and, with the background, outside the image),
+ * exact reproduction of cubic polynomials (value, gradient, Hessian in world coordinates
+ * with anisotropic spacing and a rotated grid), derivatives against finite differences,
+ * C2 continuity across knots and the border, background far away, closed isosurfaces
+ * at the border, error handling and allocation-failure injection.
+ */
+#include "test_util.h"
+
+#include "io/image_io.h"
+#include "surface/bspline.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define POLE_ABS 0.26794919243112270647
+
+/* |a - b| <= tol, in double (cmocka's float helpers round to float). */
+static void check_near(double a, double b, double tol, const char *expr, int line) {
+    if (!(fabs(a - b) <= tol)) {
+        print_error("line %d: %s: %.17g vs %.17g (diff %.3g, tol %.3g)\n", line, expr, a, b,
+                    fabs(a - b), tol);
+        fail();
+    }
+}
+#define assert_near(a, b, tol) check_near((a), (b), (tol), #a, __LINE__)
+
+typedef struct fixture {
+    tu_alloc alloc;
+    anistar_allocator al;
+    anistar_context *ctx;
+} fixture;
+
+static fixture *fx_new(void) {
+    fixture *f = calloc(1, sizeof *f);
+    assert_non_null(f);
+    tu_alloc_init(&f->alloc, -1);
+    f->al = tu_allocator(&f->alloc);
+    f->ctx = anistar_context_new(&f->al);
+    assert_non_null(f->ctx);
+    return f;
+}
+
+static void fx_free(fixture *f) {
+    anistar_context_free(f->ctx);
+    assert_int_equal(f->alloc.live_blocks, 0);
+    assert_int_equal(f->alloc.live_bytes, 0);
+    free(f);
+}
+
+static void rotation(double ax0, double ax1, double ax2, double th, double r[9]) {
+    double n = sqrt(ax0 * ax0 + ax1 * ax1 + ax2 * ax2), ax[3] = {ax0 / n, ax1 / n, ax2 / n};
+    double c = cos(th), s = sin(th);
+    double k[9] = {0, -ax[2], ax[1], ax[2], 0, -ax[0], -ax[1], ax[0], 0};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double kk = 0;
+            for (int m = 0; m < 3; m++) kk += k[3 * i + m] * k[3 * m + j];
+            r[3 * i + j] = (i == j) + s * k[3 * i + j] + (1 - c) * kk;
+        }
+}
+
+/* A float64 image of random values in [lo, hi) with the given geometry. */
+static as_image *random_image(fixture *f, size_t nx, size_t ny, size_t nz, double lo, double hi,
+                              const double sp[3], const double org[3], const double dir[9],
+                              tu_rng *rng) {
+    as_image *img;
+    assert_int_equal(as_image_new(f->ctx, nx, ny, nz, AS_VOXEL_F64, &img), ANISTAR_OK);
+    assert_int_equal(as_image_set_geometry(f->ctx, img, sp, org, dir), ANISTAR_OK);
+    double *d = img->data;
+    for (size_t i = 0; i < img->count; i++) d[i] = tu_rng_range(rng, lo, hi);
+    return img;
+}
+
+static void voxel_world(const as_bspline *bs, double i, double j, double k, double p[3]) {
+    double v[3] = {i, j, k};
+    as_grid_voxel_to_world(as_bspline_grid(bs), v, p);
+}
+
+/* ---- interpolation ------------------------------------------------------------------ */
+
+static void test_interpolates_voxels(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {42};
+    double rot[9];
+    rotation(1, -2, 0.5, 0.9, rot);
+    const double sp[3] = {0.7, 1.3, 2.1}, org[3] = {5, -1, 2};
+    /* Sizes including 1 and 2 along an axis (edge cases of the recursions). */
+    static const size_t dims[][3] = {{13, 11, 9}, {1, 5, 3}, {2, 1, 1}, {1, 1, 1}, {4, 2, 7}};
+    for (size_t t = 0; t < sizeof dims / sizeof dims[0]; t++) {
+        as_image *img =
+            random_image(f, dims[t][0], dims[t][1], dims[t][2], -1, 2, sp, org, rot, &rng);
+        const double bg = -0.37;
+        as_bspline *bs;
+        assert_int_equal(as_bspline_create(f->ctx, img, bg, &bs), ANISTAR_OK);
+        double vmax = 2;
+        const ptrdiff_t n[3] = {(ptrdiff_t)dims[t][0], (ptrdiff_t)dims[t][1],
+                                (ptrdiff_t)dims[t][2]};
+        /* Every integer position of [-6, n+5]^3: the voxel inside, the background outside. */
+        long checked = 0;
+        for (ptrdiff_t k = -6; k < n[2] + 6; k++)
+            for (ptrdiff_t j = -6; j < n[1] + 6; j++)
+                for (ptrdiff_t i = -6; i < n[0] + 6; i++) {
+                    int inside = i >= 0 && j >= 0 && k >= 0 && i < n[0] && j < n[1] && k < n[2];
+                    double expect =
+                        inside ? as_image_value(img, (size_t)(i + n[0] * (j + n[1] * k))) : bg;
+                    double p[3], v[3] = {(double)i, (double)j, (double)k};
+                    voxel_world(bs, (double)i, (double)j, (double)k, p);
+                    assert_near(as_bspline_value(bs, p), expect, 1e-12 * vmax);
+                    assert_near(as_bspline_value_voxel(bs, v), expect, 1e-13 * vmax);
+                    double g[3], h[6];
+                    assert_near(as_bspline_value_grad_hess(bs, p, g, h), expect, 1e-12 * vmax);
+                    checked++;
+                }
+        assert_true(checked > 0);
+        as_bspline_free(f->ctx, bs);
+        as_image_free(f->ctx, img);
+    }
+    fx_free(f);
+}
+
+/* The same voxels as uint8 and as float64 give the same spline; a real image
+ * interpolates at its voxel centers and keeps its inside count. */
+static void test_types_and_skull(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    as_image *a, *b;
+    assert_int_equal(as_image_new(f->ctx, 9, 8, 7, AS_VOXEL_U8, &a), ANISTAR_OK);
+    assert_int_equal(as_image_new(f->ctx, 9, 8, 7, AS_VOXEL_F64, &b), ANISTAR_OK);
+    tu_rng rng = {9};
+    for (size_t i = 0; i < a->count; i++) {
+        uint8_t x = (uint8_t)tu_rng_u64(&rng);
+        ((uint8_t *)a->data)[i] = x;
+        ((double *)b->data)[i] = x;
+    }
+    as_bspline *sa, *sb;
+    assert_int_equal(as_bspline_create(f->ctx, a, 10, &sa), ANISTAR_OK);
+    assert_int_equal(as_bspline_create(f->ctx, b, 10, &sb), ANISTAR_OK);
+    for (int it = 0; it < 200; it++) {
+        double p[3] = {tu_rng_range(&rng, -3, 11), tu_rng_range(&rng, -3, 10),
+                       tu_rng_range(&rng, -3, 9)};
+        assert_true(as_bspline_value(sa, p) == as_bspline_value(sb, p));
+    }
+    as_bspline_free(f->ctx, sa);
+    as_bspline_free(f->ctx, sb);
+    as_image_free(f->ctx, a);
+    as_image_free(f->ctx, b);
+
+    as_image *img;
+    assert_int_equal(as_image_read(f->ctx, AS_TEST_DATA_DIR "/skull_2.9.inr", &img), ANISTAR_OK);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_OK);
+    long inside = 0;
+    for (size_t k = 0; k < img->nz; k++)
+        for (size_t j = 0; j < img->ny; j++)
+            for (size_t i = 0; i < img->nx; i++) {
+                double p[3];
+                voxel_world(bs, (double)i, (double)j, (double)k, p);
+                double fv = as_bspline_value(bs, p);
+                double v = as_image_value(img, i + img->nx * (j + img->ny * k));
+                assert_near(fv, v, 1e-12 * 5.43);
+                inside += fv > 2.9;
+            }
+    assert_int_equal(inside, 22490);
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* ---- polynomial reproduction -------------------------------------------------------- */
+
+typedef struct poly {
+    double k[20];
+    int e[20][3];
+    double c[3], L; /* P(p) = sum k_m q^e_m, q = (p - c) / L */
+} poly;
+
+static void poly_init(poly *P, tu_rng *rng, const double c[3], double L) {
+    int m = 0;
+    for (int a = 0; a <= 3; a++)
+        for (int b = 0; a + b <= 3; b++)
+            for (int d = 0; a + b + d <= 3; d++) {
+                P->e[m][0] = a;
+                P->e[m][1] = b;
+                P->e[m][2] = d;
+                P->k[m] = tu_rng_range(rng, -1, 1);
+                m++;
+            }
+    assert_int_equal(m, 20);
+    memcpy(P->c, c, sizeof P->c);
+    P->L = L;
+}
+
+static double ipow(double x, int n) {
+    double r = 1;
+    for (int i = 0; i < n; i++) r *= x;
+    return r;
+}
+
+/* d^n/dx^n of x^e. */
+static double dpow(double x, int e, int n) {
+    if (n > e) return 0;
+    double f = 1;
+    for (int i = 0; i < n; i++) f *= e - i;
+    return f * ipow(x, e - n);
+}
+
+static double poly_eval(const poly *P, const double p[3], double g[3], double h[6]) {
+    double q[3];
+    for (int i = 0; i < 3; i++) q[i] = (p[i] - P->c[i]) / P->L;
+    double v = 0;
+    for (int i = 0; i < 3; i++) g[i] = 0;
+    for (int i = 0; i < 6; i++) h[i] = 0;
+    static const int hi[6] = {0, 0, 0, 1, 1, 2}, hj[6] = {0, 1, 2, 1, 2, 2};
+    for (int m = 0; m < 20; m++) {
+        const int *e = P->e[m];
+        v += P->k[m] * ipow(q[0], e[0]) * ipow(q[1], e[1]) * ipow(q[2], e[2]);
+        for (int a = 0; a < 3; a++) {
+            int n[3] = {0, 0, 0};
+            n[a] = 1;
+            g[a] += P->k[m] * dpow(q[0], e[0], n[0]) * dpow(q[1], e[1], n[1]) *
+                    dpow(q[2], e[2], n[2]) / P->L;
+        }
+        for (int s = 0; s < 6; s++) {
+            int n[3] = {0, 0, 0};
+            n[hi[s]]++;
+            n[hj[s]]++;
+            h[s] += P->k[m] * dpow(q[0], e[0], n[0]) * dpow(q[1], e[1], n[1]) *
+                    dpow(q[2], e[2], n[2]) / (P->L * P->L);
+        }
+    }
+    return v;
+}
+
+static void test_polynomial_reproduction(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {2024};
+    double rot[9];
+    rotation(0.3, 1, -0.7, 1.1, rot);
+    const double sp[3] = {0.7, 1.1, 1.6}, org[3] = {-10, 4, 30};
+    const size_t n = 60;
+    as_image *img;
+    assert_int_equal(as_image_new(f->ctx, n, n, n, AS_VOXEL_F64, &img), ANISTAR_OK);
+    assert_int_equal(as_image_set_geometry(f->ctx, img, sp, org, rot), ANISTAR_OK);
+    double center[3], radius;
+    as_grid_bounding_sphere(&img->grid, 0, center, &radius);
+    for (int rep = 0; rep < 3; rep++) {
+        poly P;
+        poly_init(&P, &rng, center, 0.5 * radius);
+        double *d = img->data, g[3], h[6];
+        for (size_t k = 0; k < n; k++)
+            for (size_t j = 0; j < n; j++)
+                for (size_t i = 0; i < n; i++) {
+                    double v[3] = {(double)i, (double)j, (double)k}, p[3];
+                    as_grid_voxel_to_world(&img->grid, v, p);
+                    d[i + n * (j + n * k)] = poly_eval(&P, p, g, h);
+                }
+        as_bspline *bs;
+        assert_int_equal(as_bspline_create(f->ctx, img, tu_rng_range(&rng, -2, 2), &bs),
+                         ANISTAR_OK);
+        /* Random points at least 25 voxels from the border; scales = largest magnitude of
+         * each quantity over the points. */
+        enum { NP = 300 };
+        double pts[NP][3], ev[NP], eg[NP][3], eh[NP][6];
+        double sv = 0, sg = 0, sh = 0;
+        for (int t = 0; t < NP; t++) {
+            double v[3] = {tu_rng_range(&rng, 25, 34), tu_rng_range(&rng, 25, 34),
+                           tu_rng_range(&rng, 25, 34)};
+            as_grid_voxel_to_world(&img->grid, v, pts[t]);
+            ev[t] = poly_eval(&P, pts[t], eg[t], eh[t]);
+            sv = fmax(sv, fabs(ev[t]));
+            for (int a = 0; a < 3; a++) sg = fmax(sg, fabs(eg[t][a]));
+            for (int a = 0; a < 6; a++) sh = fmax(sh, fabs(eh[t][a]));
+        }
+        for (int t = 0; t < NP; t++) {
+            double fg[3], fh[6];
+            double fv = as_bspline_value_grad_hess(bs, pts[t], fg, fh);
+            assert_near(fv, ev[t], 1e-9 * sv);
+            for (int a = 0; a < 3; a++) assert_near(fg[a], eg[t][a], 1e-9 * sg);
+            for (int a = 0; a < 6; a++) assert_near(fh[a], eh[t][a], 1e-9 * sh);
+            assert_near(as_bspline_value(bs, pts[t]), ev[t], 1e-9 * sv);
+            double g1[3];
+            assert_near(as_bspline_value_grad(bs, pts[t], g1), ev[t], 1e-9 * sv);
+            for (int a = 0; a < 3; a++) assert_near(g1[a], eg[t][a], 1e-9 * sg);
+        }
+        as_bspline_free(f->ctx, bs);
+    }
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* ---- derivatives and continuity ----------------------------------------------------- */
+
+/* An anisotropic, sheared grid of random values. */
+static as_image *sheared_image(fixture *f, tu_rng *rng) {
+    const double sp[3] = {0.6, 1.0, 1.7}, org[3] = {1, 2, 3};
+    const double shear[9] = {1, 0.3, -0.2, 0.1, 1, 0.25, 0, -0.15, 1};
+    return random_image(f, 12, 10, 8, 0, 1, sp, org, shear, rng);
+}
+
+static void test_derivatives_vs_finite_differences(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {31337};
+    as_image *img = sheared_image(f, &rng);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0.2, &bs), ANISTAR_OK);
+    const double eps = 1e-5; /* world step (voxels are ~1 wide) */
+    for (int it = 0; it < 400; it++) {
+        double v[3] = {tu_rng_range(&rng, -4, 15), tu_rng_range(&rng, -4, 13),
+                       tu_rng_range(&rng, -4, 11)};
+        double p[3], g[3], h[6], g1[3];
+        as_grid_voxel_to_world(as_bspline_grid(bs), v, p);
+        double fv = as_bspline_value_grad_hess(bs, p, g, h);
+        assert_near(as_bspline_value(bs, p), fv, 1e-14);
+        assert_near(as_bspline_value_grad(bs, p, g1), fv, 1e-14);
+        for (int a = 0; a < 3; a++) assert_near(g1[a], g[a], 1e-14);
+        static const int hi[6] = {0, 0, 0, 1, 1, 2}, hj[6] = {0, 1, 2, 1, 2, 2};
+        double hfd[3][3];
+        for (int a = 0; a < 3; a++) {
+            double pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]}, gp[3], gm[3];
+            pp[a] += eps;
+            pm[a] -= eps;
+            double fp = as_bspline_value_grad(bs, pp, gp);
+            double fm = as_bspline_value_grad(bs, pm, gm);
+            assert_near(g[a], (fp - fm) / (2 * eps), 1e-6);
+            for (int b = 0; b < 3; b++) hfd[b][a] = (gp[b] - gm[b]) / (2 * eps);
+        }
+        for (int s = 0; s < 6; s++) {
+            assert_near(h[s], hfd[hi[s]][hj[s]], 1e-5);
+            assert_near(h[s], hfd[hj[s]][hi[s]], 1e-5);
+        }
+        /* Voxel-coordinate derivatives map to the world ones: g_w = A^-T g_v. */
+        double gv[3], hv[6];
+        as_bspline_value_grad_hess_voxel(bs, v, gv, hv);
+        const double *ai = as_bspline_grid(bs)->ainv;
+        for (int a = 0; a < 3; a++)
+            assert_near(g[a], gv[0] * ai[a] + gv[1] * ai[3 + a] + gv[2] * ai[6 + a], 1e-12);
+    }
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+static void test_c2_continuity_across_knots(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {5};
+    as_image *img = sheared_image(f, &rng);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0.5, &bs), ANISTAR_OK);
+    const double de = 1e-8;
+    const ptrdiff_t n[3] = {12, 10, 8};
+    double worst_h = 0, seen_d3 = 0;
+    for (int it = 0; it < 600; it++) {
+        double v[3] = {tu_rng_range(&rng, -4, 15), tu_rng_range(&rng, -4, 13),
+                       tu_rng_range(&rng, -4, 11)};
+        int a = it % 3;
+        /* A knot plane; every 4th one on the border or beyond it. */
+        ptrdiff_t knot = (it % 4 == 0) ? ((it / 4) % 2 ? n[a] - 1 + (it / 8) % 4 : -((it / 8) % 4))
+                                       : (ptrdiff_t)floor(v[a]);
+        double lo[3] = {v[0], v[1], v[2]}, hi[3] = {v[0], v[1], v[2]};
+        lo[a] = (double)knot - de;
+        hi[a] = (double)knot + de;
+        double gl[3], hl[6], gh[3], hh[6];
+        double fl = as_bspline_value_grad_hess_voxel(bs, lo, gl, hl);
+        double fh = as_bspline_value_grad_hess_voxel(bs, hi, gh, hh);
+        /* Steps of 2e-8 voxel: value, gradient and Hessian change by O(2e-8) (C2). */
+        assert_near(fl, fh, 1e-6);
+        for (int c = 0; c < 3; c++) assert_near(gl[c], gh[c], 1e-6);
+        for (int c = 0; c < 6; c++) {
+            assert_near(hl[c], hh[c], 1e-6);
+            worst_h = fmax(worst_h, fabs(hl[c] - hh[c]));
+        }
+        /* The third derivative does jump at knots (piecewise cubic): the Hessian's
+         * one-sided slopes differ, so the test above is not vacuous. */
+        double l2[3] = {lo[0], lo[1], lo[2]}, h2[3] = {hi[0], hi[1], hi[2]};
+        l2[a] -= 1e-3;
+        h2[a] += 1e-3;
+        double g2[3], hl2[6], hh2[6];
+        as_bspline_value_grad_hess_voxel(bs, l2, g2, hl2);
+        as_bspline_value_grad_hess_voxel(bs, h2, g2, hh2);
+        int ii = a == 0 ? 0 : a == 1 ? 3 : 5; /* d2/da2 */
+        double d3l = (hl[ii] - hl2[ii]) / 1e-3, d3h = (hh2[ii] - hh[ii]) / 1e-3;
+        seen_d3 = fmax(seen_d3, fabs(d3l - d3h));
+    }
+    assert_true(worst_h < 1e-6);
+    assert_true(seen_d3 > 1e-2);
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* ---- outside the image -------------------------------------------------------------- */
+
+static void test_background_outside(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {77};
+    as_image *img = sheared_image(f, &rng);
+    const double bg = -3.0;
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, bg, &bs), ANISTAR_OK);
+    const double cmax = as_bspline_coef_max(bs);
+    assert_true(cmax > 1);
+    assert_true(as_bspline_background(bs) == bg);
+    const ptrdiff_t n[3] = {12, 10, 8};
+    for (int it = 0; it < 2000; it++) {
+        /* A point d voxels outside along axis a, anywhere along the others. */
+        int a = it % 3;
+        double d = tu_rng_range(&rng, 0.5, AS_BSPLINE_REACH + 10);
+        double v[3];
+        for (int c = 0; c < 3; c++) v[c] = tu_rng_range(&rng, -40, (double)n[c] + 40);
+        v[a] = (it / 3) % 2 ? (double)(n[a] - 1) + d : -d;
+        double g[3], h[6];
+        double fv = as_bspline_value_grad_hess_voxel(bs, v, g, h);
+        assert_true(as_bspline_value_voxel(bs, v) == fv);
+        /* |f - b| < |z|^(d-2) max|c| */
+        assert_true(fabs(fv - bg) <= pow(POLE_ABS, d - 2) * cmax);
+        int beyond = 0;
+        for (int c = 0; c < 3; c++)
+            beyond |= v[c] < -AS_BSPLINE_REACH || v[c] > (double)(n[c] - 1) + AS_BSPLINE_REACH;
+        if (beyond) {
+            assert_true(fv == bg);
+            for (int c = 0; c < 3; c++) assert_true(g[c] == 0);
+            for (int c = 0; c < 6; c++) assert_true(h[c] == 0);
+        }
+    }
+    /* The value tends to the background: |f - b| shrinks along a ray leaving the image. */
+    double prev = INFINITY;
+    for (int d = 2; d < AS_BSPLINE_REACH; d += 3) {
+        double v[3] = {5.5, 4.25, (double)(n[2] - 1) + d + 0.5};
+        double dev = fabs(as_bspline_value_voxel(bs, v) - bg);
+        assert_true(dev < prev || dev == 0);
+        prev = dev;
+    }
+    assert_true(prev < 1e-14 * cmax);
+    /* The margin: beyond it, f stays on the background's side of the level. */
+    static const double levels[] = {-2.9, -2.0, -1.0, 0.3, 0.9, -3.1, -4.5};
+    for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++) {
+        double m = as_bspline_margin(bs, levels[l]);
+        assert_true(m >= 0 && m <= AS_BSPLINE_REACH && m == floor(m));
+        for (int it = 0; it < 300; it++) {
+            int a = it % 3;
+            double v[3];
+            for (int c = 0; c < 3; c++) v[c] = tu_rng_range(&rng, -m - 5, (double)n[c] + m + 5);
+            double out = tu_rng_range(&rng, 1e-9, 6);
+            v[a] = it % 2 ? (double)(n[a] - 1) + m + out : -m - out;
+            double fv = as_bspline_value_voxel(bs, v);
+            assert_true(fabs(fv - bg) < fabs(levels[l] - bg));
+        }
+    }
+    assert_true(as_bspline_margin(bs, bg) == AS_BSPLINE_REACH);
+    /* Non-finite points give NaN. */
+    double pn[3] = {NAN, 0, 0}, pi[3] = {0, INFINITY, 0}, g[3], h[6];
+    assert_true(isnan(as_bspline_value(bs, pn)));
+    assert_true(isnan(as_bspline_value(bs, pi)));
+    assert_true(isnan(as_bspline_value_grad_hess(bs, pn, g, h)) && isnan(g[0]) && isnan(h[5]));
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* Sample n points on the sphere (c, r) and return max of f there. */
+static double max_on_sphere(const as_bspline *bs, const double c[3], double r, int n, tu_rng *rng) {
+    double mx = -INFINITY;
+    for (int i = 0; i < n; i++) {
+        double u = tu_rng_range(rng, -1, 1), phi = tu_rng_range(rng, 0, 6.283185307179586);
+        double s = sqrt(1 - u * u);
+        double p[3] = {c[0] + r * s * cos(phi), c[1] + r * s * sin(phi), c[2] + r * u};
+        mx = fmax(mx, as_bspline_value(bs, p));
+    }
+    return mx;
+}
+
+static void test_border_surface_closes(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {99};
+    /* An image filled with 1: the isosurface 0.5 of the reconstruction is closed. */
+    as_image *img;
+    assert_int_equal(as_image_new(f->ctx, 10, 8, 6, AS_VOXEL_U8, &img), ANISTAR_OK);
+    memset(img->data, 1, img->data_bytes);
+    double rot[9];
+    rotation(1, 1, 1, 0.4, rot);
+    const double sp[3] = {1.0, 0.5, 2.0};
+    assert_int_equal(as_image_set_geometry(f->ctx, img, sp, NULL, rot), ANISTAR_OK);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_OK);
+    double c[3], r;
+    as_grid_bounding_sphere(as_bspline_grid(bs), 0, c, &r);
+    assert_true(as_bspline_value(bs, c) > 0.5);
+    /* Every voxel center is inside (interpolation), the whole image too. */
+    for (size_t k = 0; k < 6; k++)
+        for (size_t j = 0; j < 8; j++)
+            for (size_t i = 0; i < 10; i++) {
+                double p[3];
+                voxel_world(bs, (double)i, (double)j, (double)k, p);
+                assert_true(as_bspline_value(bs, p) - 0.5 > 0);
+            }
+    double m = as_bspline_margin(bs, 0.5);
+    assert_true(m >= 1 && m <= 4);
+    double cm[3], rm;
+    as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
+    assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) - 0.5 < 0);
+    /* Tighter: already one voxel beyond the grid the sign is negative. */
+    as_grid_bounding_sphere(as_bspline_grid(bs), 1, cm, &rm);
+    assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) - 0.5 < 0);
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+
+    /* The brain: the head crosses the first and last z slices; with background 0 the
+     * skin isosurface (40) closes within the margin. */
+    assert_int_equal(as_image_read(f->ctx, AS_TEST_DATA_DIR "/brain_t1.nhdr", &img), ANISTAR_OK);
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_OK);
+    double top_inside = 0;
+    for (size_t i = 0; i < 128 * 128; i++)
+        top_inside = fmax(top_inside, as_image_value(img, 61 * 128 * 128 + i));
+    assert_true(top_inside > 40);
+    m = as_bspline_margin(bs, 40);
+    assert_true(m >= 1 && m < AS_BSPLINE_REACH);
+    as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
+    assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) < 40);
+    /* Along the z axis through a voxel above 40 on the last slice, f goes below 40
+     * within m voxels and stays there. */
+    for (size_t i = 0; i < 128 * 128; i++)
+        if (as_image_value(img, 61 * 128 * 128 + i) > 40) {
+            double v[3] = {(double)(i % 128), (double)(i / 128), 61};
+            assert_true(as_bspline_value_voxel(bs, v) > 40);
+            for (double t = 61 + m; t < 61 + AS_BSPLINE_REACH + 2; t += 0.37) {
+                v[2] = t;
+                assert_true(as_bspline_value_voxel(bs, v) < 40);
+            }
+            break;
+        }
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* ---- errors and allocation failures ------------------------------------------------- */
+
+static void test_errors(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    as_image *img;
+    assert_int_equal(as_image_new(f->ctx, 3, 3, 3, AS_VOXEL_F32, &img), ANISTAR_OK);
+    as_bspline *bs = (as_bspline *)(uintptr_t)1;
+    assert_int_equal(as_bspline_create(f->ctx, img, NAN, &bs), ANISTAR_EINVAL);
+    assert_null(bs);
+    assert_non_null(strstr(anistar_last_error(f->ctx), "background"));
+    ((float *)img->data)[13] = NAN;
+    ((float *)img->data)[20] = INFINITY;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_EINVAL);
+    assert_null(bs);
+    assert_non_null(strstr(anistar_last_error(f->ctx), "2 non-finite voxels"));
+    as_image_free(f->ctx, img);
+    assert_int_equal(as_bspline_create(f->ctx, NULL, 0, &bs), ANISTAR_EINVAL);
+    /* Values whose coefficients overflow. */
+    assert_int_equal(as_image_new(f->ctx, 3, 3, 3, AS_VOXEL_F64, &img), ANISTAR_OK);
+    for (size_t i = 0; i < img->count; i++) ((double *)img->data)[i] = (i % 2 ? 1 : -1) * 1e308;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_EINVAL);
+    assert_null(bs);
+    assert_non_null(strstr(anistar_last_error(f->ctx), "overflow"));
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+static void test_alloc_failures(void **state) {
+    (void)state;
+    long fail_at;
+    for (fail_at = 1;; fail_at++) { /* allocation 0 is the context */
+        tu_alloc a;
+        tu_alloc_init(&a, fail_at);
+        anistar_allocator al = tu_allocator(&a);
+        anistar_context *ctx = anistar_context_new(&al);
+        assert_non_null(ctx);
+        as_image *img = NULL;
+        as_bspline *bs = NULL;
+        anistar_status st = as_image_read(ctx, AS_TEST_DATA_DIR "/brain_t1.mhd", &img);
+        if (st == ANISTAR_OK) {
+            st = as_bspline_create(ctx, img, 0, &bs);
+            if (st == ANISTAR_OK) {
+                double p[3] = {100, 120, 80};
+                assert_true(isfinite(as_bspline_value(bs, p)));
+                as_bspline_free(ctx, bs);
+            } else {
+                assert_null(bs);
+            }
+            as_image_free(ctx, img);
+        }
+        if (st != ANISTAR_OK) {
+            assert_int_equal(st, ANISTAR_ENOMEM);
+            assert_true(a.failures > 0);
+        }
+        anistar_context_free(ctx);
+        assert_int_equal(a.live_blocks, 0);
+        assert_int_equal(a.live_bytes, 0);
+        if (st == ANISTAR_OK) break;
+        assert_true(fail_at < 100);
+    }
+    assert_true(fail_at >= 5); /* reader (>= 3) + spline (2) */
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_interpolates_voxels),
+        cmocka_unit_test(test_types_and_skull),
+        cmocka_unit_test(test_polynomial_reproduction),
+        cmocka_unit_test(test_derivatives_vs_finite_differences),
+        cmocka_unit_test(test_c2_continuity_across_knots),
+        cmocka_unit_test(test_background_outside),
+        cmocka_unit_test(test_border_surface_closes),
+        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_alloc_failures),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

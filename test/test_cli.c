@@ -1,0 +1,252 @@
+/*
+ * test_cli.c — the command-line tool (examples/anistar.c), run as a separate process:
+ * the probe command's JSON checked against closed forms, --help/--version, usage errors
+ * (exit 2, one line on stderr) and runtime errors (exit 1, one line on stderr).
+ */
+#include "test_util.h"
+
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define TOOL AS_TEST_BUILD_DIR "/anistar"
+
+typedef struct run_result {
+    int status; /* exit code, or -1 if the tool did not exit normally */
+    char out[16384];
+    char err[4096];
+} run_result;
+
+static void slurp(int fd, char *buf, size_t cap) {
+    size_t n = 0;
+    lseek(fd, 0, SEEK_SET);
+    for (;;) {
+        ssize_t r = read(fd, buf + n, cap - 1 - n);
+        if (r <= 0) break;
+        n += (size_t)r;
+        if (n + 1 >= cap) break;
+    }
+    buf[n] = '\0';
+}
+
+/* Run the tool with args (NULL-terminated, without argv[0]). */
+static void run(const char *const *args, run_result *res) {
+    char outname[] = "/tmp/anistar_cli_out_XXXXXX", errname[] = "/tmp/anistar_cli_err_XXXXXX";
+    int fo = mkstemp(outname), fe = mkstemp(errname);
+    assert_true(fo >= 0 && fe >= 0);
+    const char *argv[32];
+    int n = 0;
+    argv[n++] = TOOL;
+    for (int i = 0; args[i] && n < 31; i++) argv[n++] = args[i];
+    argv[n] = NULL;
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        dup2(fo, 1);
+        dup2(fe, 2);
+        execv(TOOL, (char *const *)argv);
+        _exit(127);
+    }
+    int wst = 0;
+    assert_true(waitpid(pid, &wst, 0) == pid);
+    res->status = WIFEXITED(wst) ? WEXITSTATUS(wst) : -1;
+    slurp(fo, res->out, sizeof res->out);
+    slurp(fe, res->err, sizeof res->err);
+    close(fo);
+    close(fe);
+    unlink(outname);
+    unlink(errname);
+}
+
+/* stderr holds exactly one line starting with "anistar: ". */
+static void assert_one_line(const run_result *r) {
+    size_t len = strlen(r->err);
+    if (!(len > 10 && r->err[len - 1] == '\n' && strchr(r->err, '\n') == r->err + len - 1 &&
+          !strncmp(r->err, "anistar: ", 9)))
+        fail_msg("stderr is not one 'anistar: ...' line: '%s'", r->err);
+}
+
+/* The numbers of the JSON array after "key": [ ... ] (nested brackets flattened). */
+static int json_numbers(const char *json, const char *key, double *v, int max) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(json, pat);
+    if (!p) return -1;
+    p += strlen(pat);
+    while (*p == ' ') p++;
+    if (*p != '[') {
+        char *end;
+        v[0] = strtod(p, &end);
+        return end == p ? -1 : 1;
+    }
+    int depth = 0, n = 0;
+    for (; *p; p++) {
+        if (*p == '[') depth++;
+        else if (*p == ']') {
+            if (--depth == 0) break;
+        } else if (*p == '-' || (*p >= '0' && *p <= '9')) {
+            char *end;
+            double x = strtod(p, &end);
+            if (n < max) v[n] = x;
+            n++;
+            p = end - 1;
+        }
+    }
+    return n;
+}
+
+static void test_probe_torus(void **state) {
+    (void)state;
+    const char *args[] = {"probe", "--builtin", "torus", "--metric", "curvature", "--at",
+                          "11,0,0", NULL};
+    run_result *r = test_malloc(sizeof *r);
+    run(args, r);
+    if (r->status != 0) fail_msg("exit %d: %s", r->status, r->err);
+    assert_string_equal(r->err, "");
+    double v[8];
+    /* at (11, 0, 0) on the torus R 10, r 1: on S, curvatures 1/r and 1/(R + r) */
+    assert_int_equal(json_numbers(r->out, "f", v, 8), 1);
+    assert_true(fabs(v[0]) < 1e-12);
+    assert_int_equal(json_numbers(r->out, "gradient", v, 8), 3);
+    assert_true(fabs(v[0] - 2) < 1e-12 && fabs(v[1]) < 1e-12 && fabs(v[2]) < 1e-12);
+    assert_int_equal(json_numbers(r->out, "projection", v, 8), 3);
+    assert_true(fabs(v[0] - 11) < 1e-10 && fabs(v[1]) < 1e-10 && fabs(v[2]) < 1e-10);
+    assert_int_equal(json_numbers(r->out, "normal", v, 8), 3);
+    assert_true(fabs(v[0] - 1) < 1e-12);
+    assert_int_equal(json_numbers(r->out, "curvatures", v, 8), 2);
+    assert_true(fabs(v[0] - 1) < 1e-10 && fabs(v[1] - 1.0 / 11) < 1e-10);
+    assert_int_equal(json_numbers(r->out, "directions", v, 8), 6);
+    assert_true(fabs(fabs(v[2]) - 1) < 1e-10); /* meridian: z */
+    assert_true(fabs(fabs(v[4]) - 1) < 1e-10); /* parallel: y */
+    /* tensor: e = 1 along z (meridian), 1/11 along y (parallel), e_n = 1 along x */
+    assert_int_equal(json_numbers(r->out, "tensor", v, 8), 6);
+    assert_true(fabs(v[0] - 1) < 1e-9 && fabs(v[3] - 1.0 / 121) < 1e-12 &&
+                fabs(v[5] - 1) < 1e-9);
+    assert_true(fabs(v[1]) < 1e-12 && fabs(v[2]) < 1e-9 && fabs(v[4]) < 1e-12);
+    assert_non_null(strstr(r->out, "\"metric\": \"curvature\""));
+    test_free(r);
+}
+
+static void test_probe_projection(void **state) {
+    (void)state;
+    /* a point off S: the sphere of radius 2 given as an expression */
+    const char *args[] = {"probe", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,3",
+                          "--at", "0,3,4", "--metric", "shock,en=2", NULL};
+    run_result *r = test_malloc(sizeof *r);
+    run(args, r);
+    if (r->status != 0) fail_msg("exit %d: %s", r->status, r->err);
+    double v[8];
+    assert_int_equal(json_numbers(r->out, "f", v, 8), 1);
+    assert_true(fabs(v[0] - 21) < 1e-12);
+    assert_int_equal(json_numbers(r->out, "projection", v, 8), 3);
+    assert_true(fabs(v[0]) < 1e-11 && fabs(v[1] - 1.2) < 1e-11 && fabs(v[2] - 1.6) < 1e-11);
+    assert_int_equal(json_numbers(r->out, "distance", v, 8), 1);
+    assert_true(fabs(v[0] - 3) < 1e-11);
+    assert_int_equal(json_numbers(r->out, "curvatures", v, 8), 2);
+    assert_true(fabs(v[0] - 0.5) < 1e-10 && fabs(v[1] - 0.5) < 1e-10);
+    assert_int_equal(json_numbers(r->out, "tensor", v, 8), 6);
+    test_free(r);
+}
+
+static void test_help_version(void **state) {
+    (void)state;
+    run_result *r = test_malloc(sizeof *r);
+    const char *h[] = {"--help", NULL};
+    run(h, r);
+    assert_int_equal(r->status, 0);
+    assert_non_null(strstr(r->out, "probe SURFACE"));
+    assert_non_null(strstr(r->out, "mesh"));
+    assert_non_null(strstr(r->out, "render"));
+    const char *name, *desc;
+    for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)
+        assert_non_null(strstr(r->out, name));
+    const char *v[] = {"--version", NULL};
+    run(v, r);
+    assert_int_equal(r->status, 0);
+    assert_non_null(strstr(r->out, anistar_version()));
+    test_free(r);
+}
+
+static void test_usage_errors(void **state) {
+    (void)state;
+    const char *cases[][12] = {
+        {NULL},
+        {"frobnicate", NULL},
+        {"probe", "--builtin", "torus", "--at", "11,0,0", "--frob", NULL},
+        {"probe", "--builtin", "torus", NULL},
+        {"probe", "--builtin", "torus", "--at", "11,0", NULL},
+        {"probe", "--builtin", "torus", "--at", "11,0,x", NULL},
+        {"probe", "--builtin", "torus", "--at", "11,,0", NULL},
+        {"probe", "--builtin", "torus", "--at", "11,0,0,1", NULL},
+        {"probe", "--builtin", "torus", "--at", NULL},
+        {"probe", "--builtin", "torux", "--at", "11,0,0", NULL},
+        {"probe", "--builtin", "torus,q=1", "--at", "11,0,0", NULL},
+        {"probe", "--builtin", "torus", "--metric", "curvature,foo=1", "--at", "11,0,0", NULL},
+        {"probe", "--builtin", "torus", "--metric", "frob", "--at", "11,0,0", NULL},
+        {"probe", "--builtin", "torus", "--metric", "hessian:max(x,y", "--at", "1,0,0", NULL},
+        {"probe", "--at", "11,0,0", NULL},
+        {"probe", "--implicit", "x^2+y^2+z^2-1", "--at", "1,0,0", NULL},
+        {"probe", "--implicit", "x^2+y^2+z^2-1", "--bound", "0,0,0", "--at", "1,0,0", NULL},
+        {"probe", "--implicit", "x^2+y^2+z^2-1", "--bound", "0,0,0,-1", "--at", "1,0,0", NULL},
+        {"probe", "--implicit", "x^2+*y", "--bound", "0,0,0,2", "--at", "1,0,0", NULL},
+        {"probe", "--builtin", "torus", "--implicit", "x", "--bound", "0,0,0,1", "--at",
+         "1,0,0", NULL},
+        {"probe", "--builtin", "torus", "--builtin", "sphere", "--at", "1,0,0", NULL},
+    };
+    run_result *r = test_malloc(sizeof *r);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        run(cases[i], r);
+        if (r->status != 2)
+            fail_msg("case %zu (%s %s ...): exit %d, stderr '%s'", i,
+                     cases[i][0] ? cases[i][0] : "", cases[i][0] && cases[i][1] ? cases[i][1] : "",
+                     r->status, r->err);
+        assert_one_line(r);
+        assert_string_equal(r->out, "");
+    }
+    test_free(r);
+}
+
+static void test_runtime_errors(void **state) {
+    (void)state;
+    const char *cases[][12] = {
+        /* no zero inside the bounding sphere */
+        {"probe", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "--at", "0.5,0,0",
+         NULL},
+        /* f is NaN at the point */
+        {"probe", "--implicit", "sqrt(x)+y^2+z^2-1", "--bound", "0,0,0,2", "--at", "-1,0,0",
+         NULL},
+        /* the surface leaks out of its bounding sphere (found computing the default e_n) */
+        {"probe", "--implicit", "x^2+y^2+z^2-9", "--bound", "0,0,0,2", "--at", "1,0,0", NULL},
+        /* files: not supported yet */
+        {"probe", "model.off", "--at", "0,0,0", NULL},
+        /* sol metrics need a mesh surface */
+        {"probe", "--builtin", "sphere", "--metric", "sol:m.sol", "--at", "1,0,0", NULL},
+        /* coming commands */
+        {"mesh", "--builtin", "sphere", "-o", "x.off", NULL},
+    };
+    const char *msgs[] = {"no", "not finite", "bounding sphere", "not supported yet",
+                          "not supported yet", "not available yet"};
+    run_result *r = test_malloc(sizeof *r);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        run(cases[i], r);
+        if (r->status != 1)
+            fail_msg("case %zu: exit %d, stderr '%s'", i, r->status, r->err);
+        assert_one_line(r);
+        if (!strstr(r->err, msgs[i])) fail_msg("case %zu: '%s' lacks '%s'", i, r->err, msgs[i]);
+        assert_string_equal(r->out, "");
+    }
+    test_free(r);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_probe_torus),   cmocka_unit_test(test_probe_projection),
+        cmocka_unit_test(test_help_version),  cmocka_unit_test(test_usage_errors),
+        cmocka_unit_test(test_runtime_errors),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

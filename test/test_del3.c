@@ -1,0 +1,1131 @@
+/*
+ * test_del3 — lib/geom/del3.c and lib/geom/sort.c: incremental Delaunay in a stretched
+ * frame.
+ *
+ * Every family of points (uniform in a cube, on a sphere, on a torus, a 10x10x10 integer
+ * grid, integer points exactly on a sphere, points stretched by frames of anisotropy 1e3
+ * and 1e5, a box plus a small surface patch like a star) is triangulated and must pass
+ * both validators (combinatorics with exact orientation; local Delaunay with the
+ * perturbation) and Euler's relation counted independently on the finite simplices
+ * (V - E + F - T = 1 for a triangulated ball). Small sets are checked against brute force
+ * (empty perturbed spheres, and the number of tets equals the number of empty perturbed
+ * spheres over all 4-subsets). The perturbed triangulation is unique, so the result must
+ * not depend on the insertion order; the conflict zone query must equal the set of tets an
+ * insertion removes and the brute-force set of tets in conflict; the grid's finite tets
+ * must tile its hull (exact volume); circumcenters are compared with an exact rational
+ * (GMP) computation, flat tets included; reset gives identical arrays without
+ * allocating; allocation failures at every allocation leave a valid, unchanged
+ * triangulation and no leak.
+ */
+#include "test_util.h"
+
+#include "anistar.h"
+#include "core.h"
+#include "geom/del3.h"
+#include "geom/metric.h"
+#include "geom/predicates.h"
+#include "geom/sort.h"
+
+#include <gmp.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- helpers ------------------------------------------------------------------------- */
+
+typedef struct fixture {
+    tu_alloc al;
+    anistar_context *ctx;
+    long base; /* allocations made by the context itself */
+} fixture;
+
+/* A context on the counting allocator; fail_after >= 0: the allocation number fail_after
+ * after the context's own fails, and every later one. */
+static void fx_open(fixture *f, long fail_after) {
+    tu_alloc_init(&f->al, -1);
+    anistar_allocator a = tu_allocator(&f->al);
+    f->ctx = anistar_context_new(&a);
+    assert_non_null(f->ctx);
+    f->base = f->al.count;
+    f->al.fail_after = fail_after < 0 ? -1 : f->base + fail_after;
+}
+
+static int same_xyz(const double *a, const double *b) {
+    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+}
+
+static void fx_close(fixture *f) {
+    anistar_context_free(f->ctx);
+    assert_int_equal(f->al.live_blocks, 0);
+    assert_int_equal(f->al.live_bytes, 0);
+}
+
+static double gauss(tu_rng *r) {
+    double u = tu_rng_unit(r), v = tu_rng_unit(r);
+    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
+}
+
+static double *alloc_pts(int n) {
+    double *p = malloc(3 * (size_t)n * sizeof *p);
+    assert_non_null(p);
+    return p;
+}
+
+static double *pts_cube(tu_rng *r, int n) {
+    double *p = alloc_pts(n);
+    for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(r, -1, 1);
+    return p;
+}
+
+static double *pts_sphere(tu_rng *r, int n) {
+    double *p = alloc_pts(n);
+    for (int i = 0; i < n; i++) {
+        double x = gauss(r), y = gauss(r), z = gauss(r), s = sqrt(x * x + y * y + z * z);
+        p[3 * i] = x / s;
+        p[3 * i + 1] = y / s;
+        p[3 * i + 2] = z / s;
+    }
+    return p;
+}
+
+static double *pts_torus(tu_rng *r, int n, double R, double rr) {
+    double *p = alloc_pts(n);
+    for (int i = 0; i < n; i++) {
+        double a = tu_rng_range(r, 0, 6.283185307179586), b = tu_rng_range(r, 0, 6.283185307179586);
+        p[3 * i] = (R + rr * cos(b)) * cos(a);
+        p[3 * i + 1] = (R + rr * cos(b)) * sin(a);
+        p[3 * i + 2] = rr * sin(b);
+    }
+    return p;
+}
+
+static int cmp_i64(const void *a, const void *b) {
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+static int cmp_quad(const void *a, const void *b) {
+    const int64_t *x = a, *y = b;
+    for (int i = 0; i < 4; i++)
+        if (x[i] != y[i]) return (x[i] > y[i]) - (x[i] < y[i]);
+    return 0;
+}
+
+static void sort4(int64_t *q) {
+    for (int i = 1; i < 4; i++)
+        for (int j = i; j > 0 && q[j] < q[j - 1]; j--) {
+            int64_t t = q[j];
+            q[j] = q[j - 1];
+            q[j - 1] = t;
+        }
+}
+
+/* All live tets as sorted quadruples of global ids (-1: infinite), sorted. */
+static int64_t *canon(const as_del3 *d, size_t *count) {
+    int64_t *q = malloc(4 * (size_t)(d->nlive + 1) * sizeof *q);
+    assert_non_null(q);
+    size_t n = 0;
+    for (int32_t t = 0; t < d->nt; t++) {
+        if (!as_del3_is_live(d, t)) continue;
+        for (int i = 0; i < 4; i++) {
+            int32_t v = d->tet_v[4 * t + i];
+            q[4 * n + i] = v < 0 ? -1 : d->gid[v];
+        }
+        sort4(q + 4 * n);
+        n++;
+    }
+    qsort(q, n, 4 * sizeof *q, cmp_quad);
+    *count = n;
+    return q;
+}
+
+static void assert_same_triangulation(const as_del3 *a, const as_del3 *b) {
+    size_t na, nb;
+    int64_t *qa = canon(a, &na), *qb = canon(b, &nb);
+    assert_int_equal(na, nb);
+    assert_memory_equal(qa, qb, 4 * na * sizeof *qa);
+    free(qa);
+    free(qb);
+}
+
+static int64_t count_unique(int64_t *keys, size_t n) {
+    if (n == 0) return 0;
+    qsort(keys, n, sizeof *keys, cmp_i64);
+    int64_t u = 1;
+    for (size_t i = 1; i < n; i++) u += keys[i] != keys[i - 1];
+    return u;
+}
+
+/* Euler's relation of the finite part (a triangulated ball): V - E + F - T = 1, with E and
+ * F counted by deduplicating the simplices of the finite tets. */
+static void check_finite_euler(const as_del3 *d) {
+    int32_t nf, ni;
+    as_del3_count(d, &nf, &ni);
+    size_t ne = 0, nfc = 0;
+    int64_t *edges = malloc(6 * (size_t)(nf + 1) * sizeof *edges);
+    int64_t *faces = malloc(4 * (size_t)(nf + 1) * sizeof *faces);
+    assert_non_null(edges);
+    assert_non_null(faces);
+    const int64_t B = (int64_t)d->nv + 1;
+    for (int32_t t = 0; t < d->nt; t++) {
+        if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
+        int64_t v[4];
+        for (int i = 0; i < 4; i++) v[i] = d->tet_v[4 * t + i];
+        sort4(v);
+        for (int i = 0; i < 4; i++)
+            for (int j = i + 1; j < 4; j++) edges[ne++] = v[i] * B + v[j];
+        for (int i = 0; i < 4; i++) {
+            int64_t f[3];
+            int k = 0;
+            for (int j = 0; j < 4; j++)
+                if (j != i) f[k++] = v[j];
+            faces[nfc++] = (f[0] * B + f[1]) * B + f[2];
+        }
+    }
+    int64_t E = count_unique(edges, ne), F = count_unique(faces, nfc);
+    int64_t V = d->nv, T = nf;
+    assert_int_equal(V - E + F - T, 1);
+    free(edges);
+    free(faces);
+}
+
+static void check_all(as_del3 *d) {
+    anistar_status st = as_del3_check_combinatorics(d);
+    if (st != ANISTAR_OK) fail_msg("combinatorics: %s", anistar_last_error(d->ctx));
+    st = as_del3_check_delaunay(d);
+    if (st != ANISTAR_OK) fail_msg("delaunay: %s", anistar_last_error(d->ctx));
+    if (d->dim3) check_finite_euler(d);
+}
+
+/* Build from pts (n points, gid i) by bulk insertion and check. */
+static void build_check(fixture *f, as_del3 *d, const double *pts, int n,
+                        const as_metric_frame *mf) {
+    as_del3_init(d, f->ctx);
+    int32_t *vx = malloc((size_t)n * sizeof *vx), ndup = -1;
+    assert_non_null(vx);
+    assert_int_equal(as_del3_insert_points(d, pts, NULL, n, mf, vx, &ndup), ANISTAR_OK);
+    assert_int_equal(ndup, 0);
+    assert_int_equal(d->nv, n);
+    for (int i = 0; i < n; i++) {
+        assert_true(vx[i] >= 0 && vx[i] < n);
+        assert_int_equal(d->gid[vx[i]], i);
+    }
+    free(vx);
+    check_all(d);
+}
+
+/* ---- Hilbert and BRIO ---------------------------------------------------------------- */
+
+static void test_hilbert(void **state) {
+    (void)state;
+    enum { B = 3, N = 1 << (3 * B) };
+    int seen[N];
+    int cell[N][3];
+    memset(seen, 0, sizeof seen);
+    for (uint32_t x = 0; x < (1u << B); x++)
+        for (uint32_t y = 0; y < (1u << B); y++)
+            for (uint32_t z = 0; z < (1u << B); z++) {
+                uint64_t h = as_hilbert3_index(x, y, z, B);
+                assert_true(h < N);
+                assert_int_equal(seen[h], 0);
+                seen[h] = 1;
+                cell[h][0] = (int)x;
+                cell[h][1] = (int)y;
+                cell[h][2] = (int)z;
+            }
+    for (int h = 1; h < N; h++) {
+        int dist = abs(cell[h][0] - cell[h - 1][0]) + abs(cell[h][1] - cell[h - 1][1]) +
+                   abs(cell[h][2] - cell[h - 1][2]);
+        assert_int_equal(dist, 1);
+    }
+    /* The 16-bit curve used by the sort: consecutive cells adjacent on a sample. */
+    for (uint32_t x = 1000; x < 1004; x++) {
+        uint64_t h0 = as_hilbert3_index(x, 77, 31000, 16);
+        assert_true(h0 < ((uint64_t)1 << 48));
+    }
+}
+
+static void test_sort(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {11};
+    int n = 5000;
+    double *p = pts_cube(&r, n);
+    int32_t *o1 = malloc((size_t)n * sizeof *o1), *o2 = malloc((size_t)n * sizeof *o2);
+    assert_int_equal(as_sort_brio(f.ctx, p, n, 7, o1), ANISTAR_OK);
+    assert_int_equal(as_sort_brio(f.ctx, p, n, 7, o2), ANISTAR_OK);
+    assert_memory_equal(o1, o2, (size_t)n * sizeof *o1); /* deterministic */
+    char *seen = calloc((size_t)n, 1);
+    for (int i = 0; i < n; i++) {
+        assert_true(o1[i] >= 0 && o1[i] < n);
+        assert_int_equal(seen[o1[i]], 0);
+        seen[o1[i]] = 1;
+    }
+    /* Hilbert order: consecutive points are close on average (a random order gives a mean
+     * distance about 1 in this cube; a space-filling order about n^(-1/3)). */
+    assert_int_equal(as_sort_hilbert(f.ctx, p, n, o2), ANISTAR_OK);
+    double sum = 0;
+    for (int i = 1; i < n; i++) {
+        const double *a = p + 3 * o2[i - 1], *b = p + 3 * o2[i];
+        sum += sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                    (a[2] - b[2]) * (a[2] - b[2]));
+    }
+    assert_true(sum / (n - 1) < 0.2);
+    double bad[6] = {0, 0, 0, NAN, 0, 0};
+    assert_int_equal(as_sort_hilbert(f.ctx, bad, 2, o2), ANISTAR_EINVAL);
+    free(seen);
+    free(o1);
+    free(o2);
+    free(p);
+    fx_close(&f);
+}
+
+/* ---- families -------------------------------------------------------------------------- */
+
+static void test_random_cube(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {1};
+    int sizes[2] = {1000, 20000};
+    for (int s = 0; s < 2; s++) {
+        double *p = pts_cube(&r, sizes[s]);
+        as_del3 d;
+        build_check(&f, &d, p, sizes[s], NULL);
+        int32_t nf, ni;
+        as_del3_count(&d, &nf, &ni);
+        /* uniform random points: about 6.5 tets per point */
+        assert_true(nf > 5 * sizes[s] && nf < 8 * sizes[s]);
+        as_del3_destroy(&d);
+        free(p);
+    }
+    fx_close(&f);
+}
+
+static void test_sphere_torus(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {2};
+    double *p = pts_sphere(&r, 5000);
+    as_del3 d;
+    build_check(&f, &d, p, 5000, NULL);
+    /* points in convex position: every vertex is on the hull */
+    int32_t nf, ni;
+    as_del3_count(&d, &nf, &ni);
+    assert_int_equal(ni, 2 * 5000 - 4);
+    as_del3_destroy(&d);
+    free(p);
+    p = pts_torus(&r, 8000, 1.0, 0.3);
+    build_check(&f, &d, p, 8000, NULL);
+    as_del3_destroy(&d);
+    free(p);
+    fx_close(&f);
+}
+
+/* A 10x10x10 integer grid: massively cospherical. The finite tets tile the hull cube:
+ * their exact volumes (orient3d is exact on small integers) add up to 9^3. */
+static void test_grid(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    int n = 1000;
+    double *p = alloc_pts(n);
+    for (int i = 0; i < n; i++) {
+        p[3 * i] = i % 10;
+        p[3 * i + 1] = (i / 10) % 10;
+        p[3 * i + 2] = i / 100;
+    }
+    as_del3 d;
+    build_check(&f, &d, p, n, NULL);
+    double vol6 = 0;
+    for (int32_t t = 0; t < d.nt; t++) {
+        if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) continue;
+        const int32_t *v = d.tet_v + 4 * t;
+        vol6 += as_orient3d(as_del3_point(&d, v[0]), as_del3_point(&d, v[1]),
+                            as_del3_point(&d, v[2]), as_del3_point(&d, v[3]));
+    }
+    assert_true(vol6 == 6.0 * 729.0);
+    /* the same set inserted one by one in index order gives the same triangulation */
+    as_del3 e;
+    as_del3_init(&e, f.ctx);
+    for (int i = 0; i < n; i++) assert_int_equal(as_del3_insert(&e, p + 3 * i, i, NULL), ANISTAR_OK);
+    check_all(&e);
+    assert_same_triangulation(&d, &e);
+    as_del3_destroy(&e);
+    as_del3_destroy(&d);
+    free(p);
+    fx_close(&f);
+}
+
+/* Integer points exactly on the sphere x^2 + y^2 + z^2 = r^2 (Pythagorean quadruples),
+ * scaled by a power of two (dyadic), plus the center: every tet of the surface points is
+ * cospherical with all others. */
+static int sphere_lattice(int rad, double scale, double *p, int cap) {
+    int n = 0;
+    for (int x = -rad; x <= rad; x++)
+        for (int y = -rad; y <= rad; y++)
+            for (int z = -rad; z <= rad; z++)
+                if (x * x + y * y + z * z == rad * rad) {
+                    if (n < cap) {
+                        p[3 * n] = x * scale;
+                        p[3 * n + 1] = y * scale;
+                        p[3 * n + 2] = z * scale;
+                    }
+                    n++;
+                }
+    return n;
+}
+
+static void test_cospherical(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    double *p = alloc_pts(4000);
+    int n = sphere_lattice(45, 1.0 / 64, p, 3999);
+    assert_true(n > 300 && n < 3999);
+    p[3 * n] = p[3 * n + 1] = p[3 * n + 2] = 0; /* the center */
+    n++;
+    as_del3 d, e;
+    build_check(&f, &d, p, n, NULL);
+    /* reversed one-by-one insertion: same triangulation */
+    as_del3_init(&e, f.ctx);
+    for (int i = n - 1; i >= 0; i--)
+        assert_int_equal(as_del3_insert(&e, p + 3 * i, i, NULL), ANISTAR_OK);
+    check_all(&e);
+    assert_same_triangulation(&d, &e);
+    as_del3_destroy(&e);
+    as_del3_destroy(&d);
+    free(p);
+    fx_close(&f);
+}
+
+static void random_rotation(tu_rng *r, double q[9]) {
+    double a = gauss(r), b = gauss(r), c = gauss(r), d = gauss(r);
+    double n = sqrt(a * a + b * b + c * c + d * d);
+    a /= n;
+    b /= n;
+    c /= n;
+    d /= n;
+    q[0] = a * a + b * b - c * c - d * d;
+    q[1] = 2 * (b * c - a * d);
+    q[2] = 2 * (b * d + a * c);
+    q[3] = 2 * (b * c + a * d);
+    q[4] = a * a - b * b + c * c - d * d;
+    q[5] = 2 * (c * d - a * b);
+    q[6] = 2 * (b * d - a * c);
+    q[7] = 2 * (c * d + a * b);
+    q[8] = a * a - b * b - c * c + d * d;
+}
+
+/* Points stretched by F with anisotropy 1e3 and 1e5 (random eigenframes): the stored
+ * coordinates are F q bit for bit, and the triangulation is valid. */
+static void test_stretched(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {3};
+    double ratios[2] = {1e3, 1e5};
+    for (int k = 0; k < 2; k++) {
+        double u[9], e[3] = {1, sqrt(ratios[k]), ratios[k]};
+        random_rotation(&r, u);
+        as_metric_frame mf;
+        assert_int_equal(as_metric_frame_from_eigen(&mf, u, e), 0);
+        int n = 3000;
+        double *p = k == 0 ? pts_sphere(&r, n) : pts_torus(&r, n, 1.0, 0.4);
+        as_del3 d;
+        build_check(&f, &d, p, n, &mf);
+        for (int32_t v = 0; v < d.nv; v++) {
+            double y[3];
+            as_metric_apply(&mf, p + 3 * d.gid[v], y);
+            assert_memory_equal(y, as_del3_point(&d, v), sizeof y);
+        }
+        /* single insertion through the frame agrees with the bulk result */
+        as_del3 s;
+        as_del3_init(&s, f.ctx);
+        for (int i = 0; i < n; i++)
+            assert_int_equal(as_del3_insert_frame(&s, &mf, p + 3 * i, i, NULL), ANISTAR_OK);
+        assert_same_triangulation(&d, &s);
+        as_del3_destroy(&s);
+        as_del3_destroy(&d);
+        free(p);
+    }
+    fx_close(&f);
+}
+
+/* 8 box corners (ids 0-7) and 40 points on a small curved patch: a star's configuration. */
+static void test_star_like(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {4};
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    for (int rep = 0; rep < 50; rep++) {
+        as_del3_reset(&d);
+        for (int c = 0; c < 8; c++) {
+            double q[3] = {c & 1 ? 3.0 : -3.0, c & 2 ? 3.0 : -3.0, c & 4 ? 3.0 : -3.0};
+            assert_int_equal(as_del3_insert(&d, q, c, NULL), ANISTAR_OK);
+        }
+        assert_true(d.dim3);
+        for (int i = 0; i < 40; i++) {
+            double x = tu_rng_range(&r, -0.1, 0.1), y = tu_rng_range(&r, -0.1, 0.1);
+            double q[3] = {x, y, 0.5 * (x * x - 2 * y * y)};
+            int32_t v;
+            assert_int_equal(as_del3_insert(&d, q, 8 + i, &v), ANISTAR_OK);
+            assert_int_equal(v, 8 + i);
+            /* every created tet holds the new vertex */
+            for (size_t k = 0; k < d.created.n; k++) {
+                const int32_t *tv = d.tet_v + 4 * d.created.a[k];
+                assert_true(tv[0] == v || tv[1] == v || tv[2] == v || tv[3] == v);
+            }
+        }
+        check_all(&d);
+    }
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* ---- duplicates and the pending phase ------------------------------------------------- */
+
+static void test_duplicates(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {5};
+    int n = 500;
+    double *p = alloc_pts(2 * n);
+    for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(&r, -1, 1);
+    p[0] = 0.0;
+    for (int i = 0; i < n; i++) { /* the second half repeats random points of the first */
+        int j = (int)(tu_rng_u64(&r) % (uint64_t)n);
+        memcpy(p + 3 * (n + i), p + 3 * j, 3 * sizeof *p);
+    }
+    memcpy(p + 3 * (n + 7), p, 3 * sizeof *p);
+    p[3 * (n + 7)] = -0.0; /* -0 vs +0: equal coordinates */
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    int32_t *vx = malloc(2 * (size_t)n * sizeof *vx), ndup;
+    assert_int_equal(as_del3_insert_points(&d, p, NULL, 2 * n, NULL, vx, &ndup), ANISTAR_OK);
+    assert_int_equal(ndup, n);
+    assert_int_equal(d.nv, n);
+    for (int i = 0; i < 2 * n; i++) {
+        const double *q = as_del3_point(&d, vx[i]);
+        assert_true(q[0] == p[3 * i] && q[1] == p[3 * i + 1] && q[2] == p[3 * i + 2]);
+    }
+    check_all(&d);
+    /* single insertion of a duplicate: reported with the vertex, nothing changes */
+    size_t nt0;
+    int64_t *before = canon(&d, &nt0);
+    for (int i = 0; i < 20; i++) {
+        int32_t v = -5;
+        assert_int_equal(as_del3_insert(&d, p + 3 * i, 10000 + i, &v), AS_DEL3_DUPLICATE);
+        assert_int_equal(v, vx[i]);
+    }
+    size_t nt1;
+    int64_t *after = canon(&d, &nt1);
+    assert_int_equal(nt0, nt1);
+    assert_memory_equal(before, after, 4 * nt0 * sizeof *before);
+    free(before);
+    free(after);
+    /* duplicates in the pending phase */
+    as_del3_reset(&d);
+    double a[3] = {1, 2, 3}, b[3] = {1, 2, 4};
+    int32_t v;
+    assert_int_equal(as_del3_insert(&d, a, 0, &v), ANISTAR_OK);
+    assert_int_equal(as_del3_insert(&d, b, 1, &v), ANISTAR_OK);
+    assert_int_equal(as_del3_insert(&d, a, 2, &v), AS_DEL3_DUPLICATE);
+    assert_int_equal(v, 0);
+    double bad[3] = {0, INFINITY, 0};
+    assert_int_equal(as_del3_insert(&d, bad, 3, &v), ANISTAR_EINVAL);
+    assert_int_equal(d.nv, 2);
+    as_del3_destroy(&d);
+    free(vx);
+    free(p);
+    fx_close(&f);
+}
+
+/* Collinear, then coplanar points stay pending; the first point off the plane builds the
+ * triangulation of all of them (created = every tet, rebuilt = 1). */
+static void test_pending(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    int id = 0;
+    for (int i = 0; i < 10; i++) {
+        double q[3] = {i, 2.0 * i, -1.0 * i};
+        assert_int_equal(as_del3_insert(&d, q, id++, NULL), ANISTAR_OK);
+        assert_false(d.dim3);
+    }
+    for (int i = 0; i < 30; i++) { /* the plane z = -x */
+        double q[3] = {i % 6, (double)(i / 6) + 0.5, -(double)(i % 6)};
+        assert_int_equal(as_del3_insert(&d, q, id++, NULL), ANISTAR_OK);
+        assert_false(d.dim3);
+    }
+    assert_int_equal(d.nlive, 0);
+    assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_OK);
+    double off[3] = {1, 1, 1};
+    assert_int_equal(as_del3_insert(&d, off, id++, NULL), ANISTAR_OK);
+    assert_true(d.dim3);
+    assert_int_equal(d.nv, 41);
+    assert_int_equal(d.rebuilt, 1);
+    assert_int_equal((int32_t)d.created.n, d.nlive);
+    assert_int_equal(d.removed.n, 0);
+    check_all(&d);
+    /* the same points in another order: same triangulation */
+    as_del3 e;
+    as_del3_init(&e, f.ctx);
+    assert_int_equal(as_del3_insert(&e, off, 40, NULL), ANISTAR_OK);
+    for (int i = 29; i >= 0; i--) {
+        double q[3] = {i % 6, (double)(i / 6) + 0.5, -(double)(i % 6)};
+        assert_int_equal(as_del3_insert(&e, q, 10 + i, NULL), ANISTAR_OK);
+    }
+    for (int i = 0; i < 10; i++) {
+        double q[3] = {i, 2.0 * i, -1.0 * i};
+        assert_int_equal(as_del3_insert(&e, q, i, NULL), ANISTAR_OK);
+    }
+    check_all(&e);
+    assert_same_triangulation(&d, &e);
+    as_del3_destroy(&e);
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* ---- brute force on small sets ------------------------------------------------------------ */
+
+/* Every finite tet's perturbed sphere is empty of all other vertices, and the number of
+ * finite tets equals the number of 4-subsets (not coplanar) with an empty perturbed
+ * sphere. */
+static void brute_force(as_del3 *d) {
+    int n = d->nv;
+    int32_t nf, ni;
+    as_del3_count(d, &nf, &ni);
+    for (int32_t t = 0; t < d->nt; t++) {
+        if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
+        const int32_t *v = d->tet_v + 4 * t;
+        for (int32_t w = 0; w < n; w++) {
+            if (w == v[0] || w == v[1] || w == v[2] || w == v[3]) continue;
+            int s = as_insphere_sos(as_del3_point(d, v[0]), as_del3_point(d, v[1]),
+                                    as_del3_point(d, v[2]), as_del3_point(d, v[3]),
+                                    as_del3_point(d, w), d->gid[v[0]], d->gid[v[1]],
+                                    d->gid[v[2]], d->gid[v[3]], d->gid[w]);
+            assert_int_equal(s, -1);
+        }
+    }
+    int empty = 0;
+    for (int a = 0; a < n; a++)
+        for (int b = a + 1; b < n; b++)
+            for (int c = b + 1; c < n; c++)
+                for (int e = c + 1; e < n; e++) {
+                    int q[4] = {a, b, c, e};
+                    double o = as_orient3d(as_del3_point(d, a), as_del3_point(d, b),
+                                           as_del3_point(d, c), as_del3_point(d, e));
+                    if (o == 0) continue;
+                    if (o < 0) {
+                        q[0] = b;
+                        q[1] = a;
+                    }
+                    int ok = 1;
+                    for (int w = 0; w < n && ok; w++) {
+                        if (w == a || w == b || w == c || w == e) continue;
+                        ok = as_insphere_sos(as_del3_point(d, q[0]), as_del3_point(d, q[1]),
+                                             as_del3_point(d, q[2]), as_del3_point(d, q[3]),
+                                             as_del3_point(d, w), d->gid[q[0]], d->gid[q[1]],
+                                             d->gid[q[2]], d->gid[q[3]], d->gid[w]) < 0;
+                    }
+                    empty += ok;
+                }
+    assert_int_equal(empty, nf);
+}
+
+static void test_brute_force(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {6};
+    as_del3 d;
+    /* random points */
+    for (int rep = 0; rep < 3; rep++) {
+        double *p = pts_cube(&r, 30);
+        build_check(&f, &d, p, 30, NULL);
+        brute_force(&d);
+        as_del3_destroy(&d);
+        free(p);
+    }
+    /* the 3x3x3 grid */
+    double g[81];
+    for (int i = 0; i < 27; i++) {
+        g[3 * i] = i % 3;
+        g[3 * i + 1] = (i / 3) % 3;
+        g[3 * i + 2] = i / 9;
+    }
+    build_check(&f, &d, g, 27, NULL);
+    brute_force(&d);
+    as_del3_destroy(&d);
+    /* cospherical integer points (r = 9) with random ids, and a 2x3x4 grid */
+    double s[3 * 200];
+    int n = sphere_lattice(9, 1.0, s, 200);
+    assert_true(n > 20 && n <= 200);
+    if (n > 34) n = 34;
+    int64_t gids[200];
+    for (int i = 0; i < n; i++) gids[i] = (int64_t)(tu_rng_u64(&r) >> 2);
+    as_del3_init(&d, f.ctx);
+    assert_int_equal(as_del3_insert_points(&d, s, gids, n, NULL, NULL, NULL), ANISTAR_OK);
+    check_all(&d);
+    brute_force(&d);
+    as_del3_destroy(&d);
+    double h[72];
+    for (int i = 0; i < 24; i++) {
+        h[3 * i] = i % 2;
+        h[3 * i + 1] = (i / 2) % 3;
+        h[3 * i + 2] = i / 6;
+    }
+    build_check(&f, &d, h, 24, NULL);
+    brute_force(&d);
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* ---- order independence, queries ---------------------------------------------------------- */
+
+static void test_order_independence(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {7};
+    int n = 800;
+    double *p = pts_sphere(&r, n);
+    for (int i = 0; i < n / 2; i++) /* half on a sphere, half inside */
+        for (int k = 0; k < 3; k++) p[3 * i + k] *= 0.5 + 0.5 * tu_rng_unit(&r);
+    as_del3 a, b, c;
+    build_check(&f, &a, p, n, NULL);
+    as_del3_init(&b, f.ctx);
+    as_del3_init(&c, f.ctx);
+    as_del3_set_seed(&c, 99);
+    for (int i = 0; i < n; i++) {
+        assert_int_equal(as_del3_insert(&b, p + 3 * i, i, NULL), ANISTAR_OK);
+        int j = n - 1 - i;
+        assert_int_equal(as_del3_insert(&c, p + 3 * j, j, NULL), ANISTAR_OK);
+    }
+    check_all(&b);
+    check_all(&c);
+    assert_same_triangulation(&a, &b);
+    assert_same_triangulation(&a, &c);
+    as_del3_destroy(&a);
+    as_del3_destroy(&b);
+    as_del3_destroy(&c);
+    free(p);
+    fx_close(&f);
+}
+
+static int cmp_i32(const void *a, const void *b) {
+    int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The conflict zone query equals the brute-force set of tets in conflict (as_del3_in_sphere
+ * over every live tet) and the set an insertion then removes; the created tets are exactly
+ * the tets of the new vertex. Points inside, outside the hull, on hull planes and on
+ * cospherical positions (a grid) are used. */
+static void test_conflict_queries(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {8};
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    for (int i = 0; i < 64; i++) { /* 4x4x4 grid */
+        double q[3] = {i % 4, (i / 4) % 4, i / 16};
+        assert_int_equal(as_del3_insert(&d, q, i, NULL), ANISTAR_OK);
+    }
+    as_del3_buf zone = {0}, brute = {0}, tets = {0};
+    for (int k = 0; k < 300; k++) {
+        double q[3];
+        int kind = k % 4;
+        for (int i = 0; i < 3; i++) {
+            if (kind == 0) q[i] = tu_rng_range(&r, -1, 4); /* anywhere */
+            else q[i] = (double)(tu_rng_u64(&r) % 11) * 0.5 - 1; /* half-integers: on planes */
+        }
+        if (kind == 3) q[2] = 3 + (double)(tu_rng_u64(&r) % 3); /* hull plane z = 3 and above */
+        int64_t g = 1000 + k;
+        int32_t dupv;
+        int rc = as_del3_conflict_zone(&d, q, g, -1, &zone, &dupv);
+        if (rc == AS_DEL3_DUPLICATE) {
+            assert_true(same_xyz(as_del3_point(&d, dupv), q));
+            continue;
+        }
+        assert_int_equal(rc, ANISTAR_OK);
+        brute.n = 0;
+        for (int32_t t = 0; t < d.nt; t++)
+            if (as_del3_is_live(&d, t) && as_del3_in_sphere(&d, t, q, g)) {
+                if (brute.n == brute.cap) {
+                    brute.cap = brute.cap ? 2 * brute.cap : 64;
+                    brute.a = realloc(brute.a, brute.cap * sizeof *brute.a);
+                }
+                brute.a[brute.n++] = t;
+            }
+        qsort(zone.a, zone.n, sizeof *zone.a, cmp_i32);
+        assert_int_equal(zone.n, brute.n);
+        assert_memory_equal(zone.a, brute.a, zone.n * sizeof *zone.a);
+        int32_t v;
+        assert_int_equal(as_del3_insert(&d, q, g, &v), ANISTAR_OK);
+        qsort(d.removed.a, d.removed.n, sizeof *d.removed.a, cmp_i32);
+        assert_int_equal(d.removed.n, zone.n);
+        assert_memory_equal(d.removed.a, zone.a, zone.n * sizeof *zone.a);
+        assert_int_equal(as_del3_vertex_tets(&d, v, &tets), ANISTAR_OK);
+        qsort(tets.a, tets.n, sizeof *tets.a, cmp_i32);
+        qsort(d.created.a, d.created.n, sizeof *d.created.a, cmp_i32);
+        assert_int_equal(tets.n, d.created.n);
+        assert_memory_equal(tets.a, d.created.a, tets.n * sizeof *tets.a);
+        if (k % 50 == 0) check_all(&d);
+    }
+    check_all(&d);
+    as_del3_buf_free(f.ctx, &zone);
+    as_del3_buf_free(f.ctx, &tets);
+    free(brute.a);
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* Incident tets and facets of every vertex against a scan of all tets. */
+static void test_vertex_queries(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {9};
+    double *p = pts_cube(&r, 400);
+    as_del3 d;
+    build_check(&f, &d, p, 400, NULL);
+    as_del3_buf tets = {0}, facets = {0};
+    int64_t *keys = malloc(4 * (size_t)d.nt * sizeof *keys);
+    for (int32_t v = 0; v < d.nv; v++) {
+        assert_int_equal(as_del3_vertex_tets(&d, v, &tets), ANISTAR_OK);
+        size_t cnt = 0;
+        for (int32_t t = 0; t < d.nt; t++) {
+            if (!as_del3_is_live(&d, t)) continue;
+            const int32_t *tv = d.tet_v + 4 * t;
+            cnt += tv[0] == v || tv[1] == v || tv[2] == v || tv[3] == v;
+        }
+        assert_int_equal(tets.n, cnt);
+        assert_int_equal(as_del3_vertex_facets(&d, v, &facets), ANISTAR_OK);
+        /* each facet: holds v, finite, unique (as a vertex triple), and its mirror agrees */
+        size_t nk = 0;
+        for (size_t k = 0; k < facets.n; k++) {
+            int32_t fc = facets.a[k], t = fc >> 2, i = fc & 3;
+            int64_t tri[4];
+            int m = 0, hasv = 0;
+            for (int j = 0; j < 4; j++) {
+                if (j == i) continue;
+                int32_t w = d.tet_v[4 * t + j];
+                assert_true(w >= 0);
+                hasv |= w == v;
+                tri[m++] = w;
+            }
+            assert_true(hasv);
+            int32_t mir = as_del3_mirror(&d, fc);
+            assert_int_equal(as_del3_mirror(&d, mir), fc);
+            tri[3] = -1;
+            sort4(tri);
+            keys[nk++] = (tri[1] * d.nv + tri[2]) * d.nv + tri[3];
+        }
+        size_t before = nk;
+        assert_int_equal(count_unique(keys, nk), (int64_t)before);
+        /* brute force: distinct finite faces holding v */
+        nk = 0;
+        for (int32_t t = 0; t < d.nt; t++) {
+            if (!as_del3_is_live(&d, t)) continue;
+            const int32_t *tv = d.tet_v + 4 * t;
+            for (int i = 0; i < 4; i++) {
+                int64_t tri[4];
+                int m = 0, ok = 0, fin = 1;
+                for (int j = 0; j < 4; j++) {
+                    if (j == i) continue;
+                    fin &= tv[j] >= 0;
+                    ok |= tv[j] == v;
+                    tri[m++] = tv[j];
+                }
+                if (!ok || !fin) continue;
+                tri[3] = -1;
+                sort4(tri);
+                keys[nk++] = (tri[1] * d.nv + tri[2]) * d.nv + tri[3];
+            }
+        }
+        assert_int_equal(count_unique(keys, nk), (int64_t)facets.n);
+    }
+    free(keys);
+    as_del3_buf_free(f.ctx, &tets);
+    as_del3_buf_free(f.ctx, &facets);
+    as_del3_destroy(&d);
+    free(p);
+    fx_close(&f);
+}
+
+/* ---- circumcenters against GMP ----------------------------------------------------------- */
+
+/* Exact circumcenter of a, b, c, e by Cramer's rule on rationals: rel error of the
+ * computed center c, relative to the circumradius. */
+static double circum_error(const double *a, const double *b, const double *c, const double *e,
+                           const double *got) {
+    mpq_t m[3][3], rhs[3], det, tmp, tmp2, x[3];
+    const double *pts[3] = {b, c, e};
+    for (int i = 0; i < 3; i++) {
+        mpq_init(rhs[i]);
+        mpq_init(x[i]);
+        for (int j = 0; j < 3; j++) mpq_init(m[i][j]);
+    }
+    mpq_inits(det, tmp, tmp2, NULL);
+    for (int i = 0; i < 3; i++) { /* 2 (p - a) . x = |p|^2 - |a|^2 */
+        for (int j = 0; j < 3; j++) {
+            mpq_set_d(tmp, pts[i][j]);
+            mpq_set_d(tmp2, a[j]);
+            mpq_sub(m[i][j], tmp, tmp2);
+            mpq_add(m[i][j], m[i][j], m[i][j]);
+            mpq_set_d(tmp, pts[i][j]);
+            mpq_mul(tmp, tmp, tmp);
+            mpq_add(rhs[i], rhs[i], tmp);
+            mpq_set_d(tmp2, a[j]);
+            mpq_mul(tmp2, tmp2, tmp2);
+            mpq_sub(rhs[i], rhs[i], tmp2);
+        }
+    }
+    /* det3 by cofactors; x_k = det(m with column k = rhs) / det */
+    mpq_t cols[3][3];
+    for (int k = -1; k < 3; k++) {
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                mpq_init(cols[i][j]);
+                mpq_set(cols[i][j], j == k ? rhs[i] : m[i][j]);
+            }
+        mpq_t acc;
+        mpq_init(acc);
+        for (int j = 0; j < 3; j++) {
+            int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+            mpq_mul(tmp, cols[1][j1], cols[2][j2]);
+            mpq_mul(tmp2, cols[1][j2], cols[2][j1]);
+            mpq_sub(tmp, tmp, tmp2);
+            mpq_mul(tmp, tmp, cols[0][j]);
+            mpq_add(acc, acc, tmp);
+        }
+        if (k < 0) mpq_set(det, acc);
+        else mpq_div(x[k], acc, det);
+        mpq_clear(acc);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) mpq_clear(cols[i][j]);
+    }
+    double err = 0, rad = 0;
+    for (int k = 0; k < 3; k++) {
+        mpq_set_d(tmp, got[k]);
+        mpq_sub(tmp, tmp, x[k]);
+        double dk = fabs(mpq_get_d(tmp));
+        err += dk * dk;
+        mpq_set_d(tmp, a[k]);
+        mpq_sub(tmp, tmp, x[k]);
+        double rk = mpq_get_d(tmp);
+        rad += rk * rk;
+    }
+    for (int i = 0; i < 3; i++) {
+        mpq_clear(rhs[i]);
+        mpq_clear(x[i]);
+        for (int j = 0; j < 3; j++) mpq_clear(m[i][j]);
+    }
+    mpq_clears(det, tmp, tmp2, NULL);
+    return sqrt(err) / sqrt(rad);
+}
+
+static void test_circumcenter(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {10};
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    double worst = 0;
+    int flat_cases = 0;
+    for (int rep = 0; rep < 400; rep++) {
+        as_del3_reset(&d);
+        double q[4][3];
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) q[i][k] = 100 + tu_rng_range(&r, -1, 1);
+        /* the fourth point: random, or at relative height 10^-(rep % 20) above the
+         * plane of the first three (nearly flat tets) */
+        double h = pow(10.0, -(double)(rep % 20));
+        double w1 = tu_rng_unit(&r), w2 = tu_rng_unit(&r);
+        double nrm[3] = {(q[1][1] - q[0][1]) * (q[2][2] - q[0][2]) - (q[1][2] - q[0][2]) * (q[2][1] - q[0][1]),
+                         (q[1][2] - q[0][2]) * (q[2][0] - q[0][0]) - (q[1][0] - q[0][0]) * (q[2][2] - q[0][2]),
+                         (q[1][0] - q[0][0]) * (q[2][1] - q[0][1]) - (q[1][1] - q[0][1]) * (q[2][0] - q[0][0])};
+        double nn = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+        for (int k = 0; k < 3; k++)
+            q[3][k] = q[0][k] + w1 * (q[1][k] - q[0][k]) + w2 * (q[2][k] - q[0][k]) +
+                      h * nrm[k] / nn;
+        int ok = 1;
+        for (int i = 0; i < 4 && ok; i++) ok = as_del3_insert(&d, q[i], i, NULL) == ANISTAR_OK;
+        if (!ok || !d.dim3) continue; /* rounded onto the plane */
+        for (int32_t t = 0; t < d.nt; t++) {
+            if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) continue;
+            double c[3];
+            assert_int_equal(as_del3_circumcenter(&d, t, c), 0);
+            const int32_t *tv = d.tet_v + 4 * t;
+            double err = circum_error(as_del3_point(&d, tv[0]), as_del3_point(&d, tv[1]),
+                                      as_del3_point(&d, tv[2]), as_del3_point(&d, tv[3]), c);
+            if (err > worst) worst = err;
+            flat_cases += h < 1e-12;
+            if (!(err < 0x1p-40 || (h < 1e-16 && err < 0x1p-30)))
+                fail_msg("circumcenter error %.3e at height %.1e", err, h);
+        }
+        int32_t inf = -1;
+        for (int32_t t = 0; t < d.nt && inf < 0; t++)
+            if (as_del3_is_live(&d, t) && as_del3_is_infinite(&d, t)) inf = t;
+        double c[3];
+        assert_int_equal(as_del3_circumcenter(&d, inf, c), -1);
+    }
+    assert_true(flat_cases > 50);
+    assert_true(worst < 0x1p-30);
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* ---- reset, determinism, allocation failures --------------------------------------------- */
+
+static void test_reset_determinism(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {12};
+    int n = 3000;
+    double *p = pts_torus(&r, n, 1, 0.25);
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    assert_int_equal(as_del3_insert_points(&d, p, NULL, n, NULL, NULL, NULL), ANISTAR_OK);
+    for (int i = 0; i < 50; i++) { /* plus single insertions */
+        double q[3] = {tu_rng_range(&r, -1, 1), tu_rng_range(&r, -1, 1), 0};
+        assert_int_equal(as_del3_insert(&d, q, n + i, NULL), ANISTAR_OK);
+    }
+    size_t nt = (size_t)d.nt, nv = (size_t)d.nv;
+    int32_t *tv = malloc(4 * nt * sizeof *tv), *ta = malloc(4 * nt * sizeof *ta);
+    double *xyz = malloc(3 * nv * sizeof *xyz);
+    memcpy(tv, d.tet_v, 4 * nt * sizeof *tv);
+    memcpy(ta, d.tet_adj, 4 * nt * sizeof *ta);
+    memcpy(xyz, d.xyz, 3 * nv * sizeof *xyz);
+    long allocs = f.al.count;
+    size_t bytes = f.al.live_bytes;
+    tu_rng r2 = {12};
+    double *p2 = pts_torus(&r2, n, 1, 0.25);
+    assert_memory_equal(p, p2, 3 * (size_t)n * sizeof *p);
+    as_del3_reset(&d);
+    assert_int_equal(d.nv, 0);
+    assert_int_equal(d.nlive, 0);
+    assert_int_equal(as_del3_insert_points(&d, p2, NULL, n, NULL, NULL, NULL), ANISTAR_OK);
+    for (int i = 0; i < 50; i++) {
+        double q[3] = {tu_rng_range(&r2, -1, 1), tu_rng_range(&r2, -1, 1), 0};
+        assert_int_equal(as_del3_insert(&d, q, n + i, NULL), ANISTAR_OK);
+    }
+    assert_int_equal((size_t)d.nt, nt);
+    assert_memory_equal(tv, d.tet_v, 4 * nt * sizeof *tv);
+    assert_memory_equal(ta, d.tet_adj, 4 * nt * sizeof *ta);
+    assert_memory_equal(xyz, d.xyz, 3 * nv * sizeof *xyz);
+    /* only the bulk insertion's temporary arrays were allocated again */
+    assert_true(f.al.count - allocs <= 4);
+    assert_int_equal(f.al.live_bytes, bytes);
+    check_all(&d);
+    free(tv);
+    free(ta);
+    free(xyz);
+    free(p);
+    free(p2);
+    as_del3_destroy(&d);
+    fx_close(&f);
+}
+
+/* With the k-th allocation (and every later one) failing, for every k up to the total of a
+ * successful run: each call returns ANISTAR_OK or ANISTAR_ENOMEM, an ENOMEM insertion
+ * leaves the triangulation unchanged and valid, nothing leaks. */
+static void run_alloc_case(long k, const double *p, int n, long *total) {
+    fixture f;
+    fx_open(&f, k);
+    as_del3 d;
+    as_del3_init(&d, f.ctx);
+    int failures = 0;
+    as_del3_buf zone = {0};
+    for (int i = 0; i < n; i++) {
+        int32_t nv0 = d.nv, nl0 = d.nlive;
+        int rc = as_del3_insert(&d, p + 3 * i, i, NULL);
+        if (rc == ANISTAR_ENOMEM) {
+            failures++;
+            assert_int_equal(d.nv, nv0);
+            assert_int_equal(d.nlive, nl0);
+        } else {
+            assert_int_equal(rc, ANISTAR_OK);
+        }
+        if (d.dim3 && i % 16 == 0) {
+            double q[3] = {p[3 * i] * 0.5, p[3 * i + 1] * 0.5, 0.25};
+            rc = as_del3_conflict_zone(&d, q, 100000 + i, -1, &zone, NULL);
+            assert_true(rc == ANISTAR_OK || rc == ANISTAR_ENOMEM || rc == AS_DEL3_DUPLICATE);
+        }
+    }
+    int32_t *vx = malloc((size_t)n * sizeof *vx);
+    as_del3 b;
+    as_del3_init(&b, f.ctx);
+    anistar_status st = as_del3_insert_points(&b, p, NULL, n, NULL, vx, NULL);
+    assert_true(st == ANISTAR_OK || st == ANISTAR_ENOMEM);
+    long fail_after = f.al.fail_after;
+    f.al.fail_after = -1; /* the validators allocate too */
+    check_all(&d);
+    check_all(&b);
+    if (st == ANISTAR_OK) {
+        assert_int_equal(b.nv, n);
+    } else {
+        int inserted = 0;
+        for (int i = 0; i < n; i++) inserted += vx[i] >= 0;
+        assert_int_equal(inserted, b.nv);
+    }
+    free(vx);
+    (void)failures;
+    if (fail_after < 0) *total = f.al.count - f.base;
+    as_del3_buf_free(f.ctx, &zone);
+    as_del3_destroy(&d);
+    as_del3_destroy(&b);
+    fx_close(&f);
+}
+
+static void test_alloc_failures(void **state) {
+    (void)state;
+    tu_rng r = {13};
+    int n = 300;
+    double *p = pts_cube(&r, n);
+    for (int i = 0; i < 6; i++) p[3 * i + 2] = 0; /* a coplanar start: the pending phase */
+    long total = 0;
+    run_alloc_case(-1, p, n, &total);
+    assert_true(total > 10);
+    for (long k = 0; k <= total; k++) {
+        long dummy = 0;
+        run_alloc_case(k, p, n, &dummy);
+    }
+    /* the first allocation failing makes every insertion fail: nothing is stored */
+    free(p);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_hilbert),
+        cmocka_unit_test(test_sort),
+        cmocka_unit_test(test_random_cube),
+        cmocka_unit_test(test_sphere_torus),
+        cmocka_unit_test(test_grid),
+        cmocka_unit_test(test_cospherical),
+        cmocka_unit_test(test_stretched),
+        cmocka_unit_test(test_star_like),
+        cmocka_unit_test(test_duplicates),
+        cmocka_unit_test(test_pending),
+        cmocka_unit_test(test_brute_force),
+        cmocka_unit_test(test_order_independence),
+        cmocka_unit_test(test_conflict_queries),
+        cmocka_unit_test(test_vertex_queries),
+        cmocka_unit_test(test_circumcenter),
+        cmocka_unit_test(test_reset_determinism),
+        cmocka_unit_test(test_alloc_failures),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

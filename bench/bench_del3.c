@@ -1,9 +1,12 @@
 /*
  * bench_del3 — throughput of lib/geom/del3.c: bulk insertion with the spatial sort
  * (uniform points, torus surface points), star-sized triangulations from scratch (8 box
- * corners + 40 points of a small surface patch, reused through as_del3_reset), single
- * insertions into a 40-point triangulation; with the predicates' stage counters.
- * Prints a table; never asserts on time.
+ * corners + 32 points of a small surface patch = 40 points, reused through
+ * as_del3_reset), single insertions into a 40-point triangulation, conflict-zone queries;
+ * with the work counters of del3 and, in bench builds, the predicates' stage counters.
+ * Prints tables with CPU time (this process) and wall time; never asserts on time.
+ *
+ * usage: bench_del3 [N (default 1000000)] [what: 0 all, 1 bulk only, 2 stars only]
  */
 #include "anistar.h"
 #include "core.h"
@@ -16,9 +19,15 @@
 #include <string.h>
 #include <time.h>
 
-static double now(void) {
+static double wall(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double cpu(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -30,19 +39,18 @@ static double unit(uint64_t *state) {
     return (double)(z >> 11) * 0x1.0p-53;
 }
 
-static void print_pred(const char *what) {
+static void pred_line(void) {
 #ifdef ANISTAR_BENCH
     as_pred_counters *c = as_pred_counters_get();
-    printf("  %-34s orient3d %llu (filter %.4f%%), insphere_sos %llu (filter %.4f%%, "
-           "perturbed %llu)\n",
-           what, (unsigned long long)c->orient3d_calls,
+    printf("    predicates.c: orient3d %llu calls (%.2f%% settled by its filter), insphere %llu "
+           "(%.2f%%), insphere_sos %llu, perturbed %llu\n",
+           (unsigned long long)c->orient3d_calls,
            c->orient3d_calls ? 100.0 * (double)c->orient3d_stage[0] / (double)c->orient3d_calls : 0,
-           (unsigned long long)c->insphere_sos_calls,
+           (unsigned long long)c->insphere_calls,
            c->insphere_calls ? 100.0 * (double)c->insphere_stage[0] / (double)c->insphere_calls : 0,
+           (unsigned long long)c->insphere_sos_calls,
            (unsigned long long)c->insphere_sos_perturbed);
     as_pred_counters_reset();
-#else
-    (void)what;
 #endif
 }
 
@@ -56,9 +64,9 @@ static int bulk(anistar_context *ctx, const char *name, const double *p, int n) 
     as_del3 d;
     as_del3_init(&d, ctx);
     pred_reset();
-    double t0 = now();
+    double w0 = wall(), c0 = cpu();
     anistar_status st = as_del3_insert_points(&d, p, NULL, n, NULL, NULL, NULL);
-    double t1 = now();
+    double w1 = wall(), c1 = cpu();
     if (st != ANISTAR_OK) {
         fprintf(stderr, "bulk %s: %s\n", name, anistar_last_error(ctx));
         as_del3_destroy(&d);
@@ -66,21 +74,27 @@ static int bulk(anistar_context *ctx, const char *name, const double *p, int n) 
     }
     int32_t nf, ni;
     as_del3_count(&d, &nf, &ni);
-    printf("| %-30s | %9d | %8.3f | %12.0f | %6.2f | %6.2f |\n", name, n, t1 - t0,
-           n / (t1 - t0), (double)nf / n, (double)d.stats.walk_steps / n);
-    print_pred(name);
+    printf("| %-22s | %8d | %7.2f | %10.0f | %7.2f | %10.0f | %6.2f | %6.2f | %6.2f |\n", name,
+           n, c1 - c0, n / (c1 - c0), w1 - w0, n / (w1 - w0), (double)nf / n,
+           (double)d.stats.walk_steps / n, (double)d.stats.conflict_tets / n);
+    pred_line();
     as_del3_destroy(&d);
     return 0;
 }
 
-/* A star: 8 corners of the box [-3,3]^3 then 40 points on z = (x^2 - 2 y^2)/2 near 0. */
-static void star_points(double *p, uint64_t *rs) {
-    for (int c = 0; c < 8; c++) {
-        p[3 * c] = c & 1 ? 3.0 : -3.0;
-        p[3 * c + 1] = c & 2 ? 3.0 : -3.0;
-        p[3 * c + 2] = c & 4 ? 3.0 : -3.0;
+enum { NPATCH_SETS = 1000, NCORNER = 8 };
+
+/* A star's points: 8 corners of the box [-3,3]^3 (exact, or each coordinate pushed out
+ * by a different few percent: "generic", no 4 coplanar, no 5 cospherical), then npatch
+ * points on z = (x^2 - 2 y^2)/2 over [-0.1, 0.1]^2. */
+static void star_points(double *p, int npatch, int generic, uint64_t *rs) {
+    for (int c = 0; c < NCORNER; c++) {
+        for (int k = 0; k < 3; k++) {
+            double s = (c >> k) & 1 ? 3.0 : -3.0;
+            p[3 * c + k] = generic ? s * (1.0 + 0.02 * ((c * 7 + k * 3) % 5) + 0.001 * c) : s;
+        }
     }
-    for (int i = 8; i < 48; i++) {
+    for (int i = NCORNER; i < NCORNER + npatch; i++) {
         double x = 0.2 * unit(rs) - 0.1, y = 0.2 * unit(rs) - 0.1;
         p[3 * i] = x;
         p[3 * i + 1] = y;
@@ -88,101 +102,127 @@ static void star_points(double *p, uint64_t *rs) {
     }
 }
 
-int main(int argc, char **argv) {
-    uint64_t rstate = 0x1234567, *rs = &rstate;
-    int big = 1000000;
-    int only = 0; /* 1: bulk only, 2: stars only */
-    if (argc > 1) big = atoi(argv[1]);
-    if (argc > 2) only = atoi(argv[2]);
-    anistar_context *ctx = anistar_context_new(NULL);
-    if (!ctx) return 1;
-    double *p = malloc(3 * (size_t)big * sizeof *p);
-    if (!p) return 1;
-    printf("| %-30s | %9s | %8s | %12s | %6s | %6s |\n", "bulk insertion (BRIO+Hilbert)",
-           "points", "seconds", "points/s", "tets/p", "walk/p");
-    printf("|--------------------------------|-----------|----------|--------------|--------|--------|\n");
-    int rc = 0;
-    int n1 = big < 100000 ? big : 100000;
-    if (only == 2) goto stars;
-    for (int i = 0; i < 3 * n1; i++) p[i] = unit(rs);
-    rc |= bulk(ctx, "uniform cube 1e5", p, n1);
-    for (int i = 0; i < 3 * big; i++) p[i] = unit(rs);
-    rc |= bulk(ctx, "uniform cube 1e6", p, big);
-    for (int i = 0; i < big; i++) {
-        double a = 6.283185307179586 * unit(rs), b = 6.283185307179586 * unit(rs);
-        p[3 * i] = (1 + 0.3 * cos(b)) * cos(a);
-        p[3 * i + 1] = (1 + 0.3 * cos(b)) * sin(a);
-        p[3 * i + 2] = 0.3 * sin(b);
-    }
-    rc |= bulk(ctx, "torus surface 1e6", p, big);
+static int build(as_del3 *d, const double *q, int n) {
+    as_del3_reset(d);
+    for (int i = 0; i < n; i++)
+        if (as_del3_insert(d, q + 3 * i, i, NULL) != ANISTAR_OK) return 1;
+    return 0;
+}
 
-    if (only == 1) goto end;
-stars:;
-    /* stars from scratch */
-    enum { NSTAR = 100000, NPTS = 48 };
-    double *sp = malloc((size_t)NSTAR / 100 * NPTS * 3 * sizeof *sp);
-    for (int s = 0; s < NSTAR / 100; s++) star_points(sp + (size_t)s * NPTS * 3, rs);
+static int stars(anistar_context *ctx, int count, int npatch, int generic, uint64_t *rs) {
+    int n = NCORNER + npatch;
+    double *sp = malloc((size_t)NPATCH_SETS * (size_t)n * 3 * sizeof *sp);
+    if (!sp) return 1;
+    for (int s = 0; s < NPATCH_SETS; s++)
+        star_points(sp + (size_t)s * (size_t)n * 3, npatch, generic, rs);
     as_del3 d;
     as_del3_init(&d, ctx);
     pred_reset();
-    double t0 = now();
-    long tets = 0;
-    for (int s = 0; s < NSTAR; s++) {
-        const double *q = sp + (size_t)(s % (NSTAR / 100)) * NPTS * 3;
-        as_del3_reset(&d);
-        for (int i = 0; i < NPTS; i++) {
-            if (as_del3_insert(&d, q + 3 * i, i, NULL) != ANISTAR_OK) {
-                fprintf(stderr, "star insertion failed: %s\n", anistar_last_error(ctx));
-                return 1;
-            }
+    uint64_t ins = 0, removed = 0, created = 0, walk = 0;
+    double w0 = wall(), c0 = cpu();
+    for (int s = 0; s < count; s++) {
+        if (build(&d, sp + (size_t)(s % NPATCH_SETS) * (size_t)n * 3, n)) {
+            fprintf(stderr, "star insertion failed: %s\n", anistar_last_error(ctx));
+            return 1;
         }
-        tets += d.nlive;
+        ins += d.stats.inserted;
+        removed += d.stats.conflict_tets;
+        created += d.stats.created_tets;
+        walk += d.stats.walk_steps;
     }
-    double t1 = now();
-    printf("(stars: %.1f live tets, %.1f removed and %.1f created per insertion, %.2f walk steps)\n",
-           (double)tets / NSTAR, (double)d.stats.conflict_tets / (NPTS - 5),
-           (double)d.stats.created_tets / (NPTS - 5), (double)d.stats.walk_steps / NPTS);
-    printf("\n| %-44s | %10s | %10s |\n", "star triangulations (8 corners + 40 points)",
-           "count", "us each");
-    printf("|----------------------------------------------|------------|------------|\n");
-    printf("| %-44s | %10d | %10.3f |\n", "from scratch (reset, 48 insertions)", NSTAR,
-           1e6 * (t1 - t0) / NSTAR);
-    print_pred("stars");
-    (void)tets;
-
-    /* single insertion into a 40-point star: build (untimed) then time one insertion */
-    double tins = 0;
-    int nins = 0;
-    for (int s = 0; s < NSTAR; s++) {
-        const double *q = sp + (size_t)(s % (NSTAR / 100)) * NPTS * 3;
-        as_del3_reset(&d);
-        for (int i = 0; i < NPTS - 1; i++) as_del3_insert(&d, q + 3 * i, i, NULL);
-        double a = now();
-        as_del3_insert(&d, q + 3 * (NPTS - 1), NPTS - 1, NULL);
-        tins += now() - a;
-        nins++;
+    double w1 = wall(), c1 = cpu();
+    char what[80];
+    snprintf(what, sizeof what, "from scratch: %s corners + %d", generic ? "generic" : "cube",
+             npatch);
+    printf("| %-40s | %7d | %8.2f | %8.2f |\n", what, count, 1e6 * (c1 - c0) / count,
+           1e6 * (w1 - w0) / count);
+    printf("    per insertion: %.1f tets removed, %.1f created, %.2f walk steps; %d live tets\n",
+           (double)removed / (double)ins, (double)created / (double)ins,
+           (double)walk / (double)ins, (int)d.nlive);
+    pred_line();
+    if (generic && npatch == 32) {
+        /* One more insertion into a 40-point star: (builds + insertions) - (builds), so
+         * that no timer call sits inside the measured operation. */
+        double xs[3 * 64];
+        for (int k = 0; k < 64; k++) {
+            double x = 0.2 * unit(rs) - 0.1, y = 0.2 * unit(rs) - 0.1;
+            xs[3 * k] = x;
+            xs[3 * k + 1] = y;
+            xs[3 * k + 2] = 0.5 * (x * x - 2 * y * y);
+        }
+        double tb[2] = {0, 0}, wb[2] = {0, 0};
+        for (int with = 0; with < 2; with++) {
+            double a = wall(), b = cpu();
+            for (int s = 0; s < count; s++) {
+                build(&d, sp + (size_t)(s % NPATCH_SETS) * (size_t)n * 3, n);
+                if (with) as_del3_insert(&d, xs + 3 * (s % 64), n, NULL);
+            }
+            tb[with] = cpu() - b;
+            wb[with] = wall() - a;
+        }
+        printf("| %-40s | %7d | %8.2f | %8.2f |\n", "one insertion into a 40-point star", count,
+               1e6 * (tb[1] - tb[0]) / count, 1e6 * (wb[1] - wb[0]) / count);
+        /* conflict-zone queries: 64 different points against each of 1000 stars */
+        as_del3_buf zone = {0};
+        double tq = 0, wq = 0;
+        int nq = 0;
+        for (int s = 0; s < NPATCH_SETS; s++) {
+            build(&d, sp + (size_t)s * (size_t)n * 3, n);
+            double a = wall(), b = cpu();
+            for (int k = 0; k < 64; k++) as_del3_conflict_zone(&d, xs + 3 * k, n, -1, &zone, NULL);
+            tq += cpu() - b;
+            wq += wall() - a;
+            nq += 64;
+        }
+        printf("| %-40s | %7d | %8.2f | %8.2f |\n", "conflict-zone query, 40-point star", nq,
+               1e6 * tq / nq, 1e6 * wq / nq);
+        as_del3_buf_free(ctx, &zone);
     }
-    printf("| %-44s | %10d | %10.3f |\n", "one insertion into a 47-point star", nins,
-           1e6 * tins / nins);
-    /* conflict-zone query of one point against a 48-point star */
-    as_del3_buf zone = {0};
-    double tq = 0;
-    for (int s = 0; s < NSTAR / 10; s++) {
-        const double *q = sp + (size_t)(s % (NSTAR / 100)) * NPTS * 3;
-        as_del3_reset(&d);
-        for (int i = 0; i < NPTS; i++) as_del3_insert(&d, q + 3 * i, i, NULL);
-        double x[3] = {0.2 * unit(rs) - 0.1, 0.2 * unit(rs) - 0.1, 0};
-        double a = now();
-        as_del3_conflict_zone(&d, x, 1000, -1, &zone, NULL);
-        tq += now() - a;
-    }
-    printf("| %-44s | %10d | %10.3f |\n", "conflict-zone query, 48-point star", NSTAR / 10,
-           1e6 * tq / (NSTAR / 10));
-    as_del3_buf_free(ctx, &zone);
     as_del3_destroy(&d);
     free(sp);
-end:
-    free(p);
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    uint64_t rstate = 0x1234567, *rs = &rstate;
+    int big = 1000000, only = 0;
+    if (argc > 1) big = atoi(argv[1]);
+    if (argc > 2) only = atoi(argv[2]);
+    if (big < 1000) big = 1000;
+    anistar_context *ctx = anistar_context_new(NULL);
+    if (!ctx) return 1;
+    int rc = 0;
+    if (only != 2) {
+        double *p = malloc(3 * (size_t)big * sizeof *p);
+        if (!p) return 1;
+        printf("| %-22s | %8s | %7s | %10s | %7s | %10s | %6s | %6s | %6s |\n",
+               "bulk (BRIO + Hilbert)", "points", "cpu s", "points/s", "wall s", "points/s",
+               "tets/p", "walk/p", "rem/p");
+        printf("|------------------------|----------|---------|------------|---------|"
+               "------------|--------|--------|--------|\n");
+        int n1 = big < 100000 ? big : 100000;
+        for (int i = 0; i < 3 * n1; i++) p[i] = unit(rs);
+        rc |= bulk(ctx, "uniform cube", p, n1);
+        for (int i = 0; i < 3 * big; i++) p[i] = unit(rs);
+        rc |= bulk(ctx, "uniform cube", p, big);
+        for (int i = 0; i < big; i++) {
+            double a = 6.283185307179586 * unit(rs), b = 6.283185307179586 * unit(rs);
+            p[3 * i] = (1 + 0.3 * cos(b)) * cos(a);
+            p[3 * i + 1] = (1 + 0.3 * cos(b)) * sin(a);
+            p[3 * i + 2] = 0.3 * sin(b);
+        }
+        rc |= bulk(ctx, "torus surface (R/r=3.3)", p, big);
+        free(p);
+        printf("\n");
+    }
+    if (only != 1) {
+        printf("| %-40s | %7s | %8s | %8s |\n", "star-sized triangulations", "count", "cpu us",
+               "wall us");
+        printf("|------------------------------------------|---------|----------|----------|\n");
+        rc |= stars(ctx, 100000, 32, 1, rs);
+        rc |= stars(ctx, 20000, 32, 0, rs);
+        rc |= stars(ctx, 20000, 40, 1, rs);
+    }
     anistar_context_free(ctx);
     return rc;
 }

@@ -35,7 +35,7 @@ static double rng_range(bench_rng *r, double lo, double hi) {
 
 static double now(void) {
     struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts); /* CPU time: robust to a shared machine */
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -68,7 +68,8 @@ static void gen_near_degenerate(bench_rng *r) {
                 pts[i][3][k] = pts[i][0][k] + u * (pts[i][1][k] - pts[i][0][k]) +
                                w * (pts[i][2][k] - pts[i][0][k]);
         }
-        int j = (int)(rng_u64(r) % 5), k = (int)(rng_u64(r) % 3), n = (int)(rng_u64(r) % 5) - 2;
+        int j = (int)(rng_u64(r) % 5), k = (int)(rng_u64(r) % 3),
+            n = (int)(rng_u64(r) % 5) - 2;
         for (; n > 0; n--) pts[i][j][k] = nextafter(pts[i][j][k], 2.0);
         for (; n < 0; n++) pts[i][j][k] = nextafter(pts[i][j][k], -2.0);
     }
@@ -81,9 +82,9 @@ typedef double (*isp_fn)(const double *, const double *, const double *, const d
 static double checksum;
 
 /* Best ns per call over reps repetitions of rounds passes over the cases. */
-static double time_o3d(o3d_fn f, int rounds) {
+static double time_o3d_reps(o3d_fn f, int rounds, int reps) {
     double best = 1e30;
-    for (int rep = 0; rep < 5; rep++) {
+    for (int rep = 0; rep < reps; rep++) {
         double acc = 0;
         double t0 = now();
         for (int r = 0; r < rounds; r++)
@@ -98,9 +99,9 @@ static double time_o3d(o3d_fn f, int rounds) {
     return best * 1e9 / ((double)rounds * NCASE);
 }
 
-static double time_isp(isp_fn f, int rounds) {
+static double time_isp_reps(isp_fn f, int rounds, int reps) {
     double best = 1e30;
-    for (int rep = 0; rep < 5; rep++) {
+    for (int rep = 0; rep < reps; rep++) {
         double acc = 0;
         double t0 = now();
         for (int r = 0; r < rounds; r++)
@@ -115,6 +116,29 @@ static double time_isp(isp_fn f, int rounds) {
     return best * 1e9 / ((double)rounds * NCASE);
 }
 
+static double time_o3d(o3d_fn f, int rounds) { return time_o3d_reps(f, rounds, 5); }
+static double time_isp(isp_fn f, int rounds) { return time_isp_reps(f, rounds, 5); }
+
+/* fast and adaptive timed in alternation (best of many short runs each), so that load
+ * from other processes affects both alike; returns the two times through t. */
+static void pair_o3d(o3d_fn fast, o3d_fn adaptive, int rounds, double t[2]) {
+    t[0] = t[1] = 1e30;
+    for (int k = 0; k < 15; k++) {
+        double a = time_o3d_reps(fast, rounds, 1), b = time_o3d_reps(adaptive, rounds, 1);
+        if (a < t[0]) t[0] = a;
+        if (b < t[1]) t[1] = b;
+    }
+}
+
+static void pair_isp(isp_fn fast, isp_fn adaptive, int rounds, double t[2]) {
+    t[0] = t[1] = 1e30;
+    for (int k = 0; k < 15; k++) {
+        double a = time_isp_reps(fast, rounds, 1), b = time_isp_reps(adaptive, rounds, 1);
+        if (a < t[0]) t[0] = a;
+        if (b < t[1]) t[1] = b;
+    }
+}
+
 static double time_sos(int rounds) {
     double best = 1e30;
     for (int rep = 0; rep < 5; rep++) {
@@ -122,8 +146,9 @@ static double time_sos(int rounds) {
         double t0 = now();
         for (int r = 0; r < rounds; r++)
             for (int i = 0; i < NCASE; i++)
-                acc += as_insphere_sos(pts[i][0], pts[i][1], pts[i][2], pts[i][3], pts[i][4],
-                                       5 * i, 5 * i + 1, 5 * i + 2, 5 * i + 3, 5 * i + 4);
+                acc +=
+                    as_insphere_sos(pts[i][0], pts[i][1], pts[i][2], pts[i][3], pts[i][4],
+                                    5 * i, 5 * i + 1, 5 * i + 2, 5 * i + 3, 5 * i + 4);
         double t = now() - t0;
         checksum += acc;
         if (t < best) best = t;
@@ -168,15 +193,28 @@ int main(void) {
             gen_random(&r);
         else
             gen_near_degenerate(&r);
-        int fast_rounds = 2000, exact_rounds = 20;
-        double of = time_o3d(as_orient3d_fast, fast_rounds);
+        int fast_rounds = 400, exact_rounds = 20;
+        double t[2], of, oa, isf, isa;
         as_pred_counters_reset();
-        double oa = time_o3d(as_orient3d, in == 0 ? fast_rounds : exact_rounds * 5);
+        if (in == 0) {
+            pair_o3d(as_orient3d_fast, as_orient3d, fast_rounds, t);
+            of = t[0];
+            oa = t[1];
+        } else {
+            of = time_o3d(as_orient3d_fast, fast_rounds);
+            oa = time_o3d(as_orient3d, exact_rounds * 5);
+        }
         cnt[in] = *as_pred_counters_get();
         double oe = time_o3d(as_orient3d_exact, exact_rounds * 5);
-        double isf = time_isp(as_insphere_fast, fast_rounds / 2);
         as_pred_counters_reset();
-        double isa = time_isp(as_insphere, in == 0 ? fast_rounds / 2 : exact_rounds);
+        if (in == 0) {
+            pair_isp(as_insphere_fast, as_insphere, fast_rounds / 2, t);
+            isf = t[0];
+            isa = t[1];
+        } else {
+            isf = time_isp(as_insphere_fast, fast_rounds / 2);
+            isa = time_isp(as_insphere, exact_rounds);
+        }
         as_pred_counters cnt_i = *as_pred_counters_get();
         cnt[in].insphere_calls = cnt_i.insphere_calls;
         memcpy(cnt[in].insphere_stage, cnt_i.insphere_stage, sizeof cnt_i.insphere_stage);
@@ -201,9 +239,10 @@ int main(void) {
         printf("  %-16s orient3d %6.2f   insphere %6.2f\n", inputs[in], ratio_o[in],
                ratio_i[in]);
 
-    printf("\nstage counters of the adaptive runs (share of calls settled by each stage):\n");
-    printf("%-10s %-16s %12s %10s %10s %10s %10s\n", "predicate", "input", "calls", "filter",
-           "B", "C", "exact");
+    printf(
+        "\nstage counters of the adaptive runs (share of calls settled by each stage):\n");
+    printf("%-10s %-16s %12s %10s %10s %10s %10s\n", "predicate", "input", "calls",
+           "filter", "B", "C", "exact");
     for (int in = 0; in < 2; in++) {
         stage_line("orient3d", inputs[in], cnt[in].orient3d_calls, cnt[in].orient3d_stage);
         stage_line("insphere", inputs[in], cnt[in].insphere_calls, cnt[in].insphere_stage);

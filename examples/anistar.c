@@ -3,7 +3,8 @@
  * docs/cli.md). It parses options into API calls and nothing else.
  *
  *   anistar probe SURFACE [--metric SPEC] --at X,Y,Z
- *   anistar mesh ... | anistar render ...        (coming: listed, not available yet)
+ *   anistar render MESH -o OUT.png [options]
+ *   anistar mesh ...                             (coming: listed, not available yet)
  *   anistar --help | --version
  *
  * Exit status: 0 done; 1 error (one line on stderr); 2 usage error (one line on stderr).
@@ -54,12 +55,37 @@ static int parse_numbers(const char *s, double *v, int n) {
 typedef struct surface_opts {
     const char *implicit; /* --implicit EXPR */
     const char *builtin;  /* --builtin NAME[,P=V...] */
-    const char *file;     /* FILE (meshes, images: not supported yet) */
+    const char *file;     /* FILE: a triangle mesh or a 3D image */
     double bound[4];      /* --bound CX,CY,CZ,R */
     int has_bound;
     double iso; /* --iso V (images) */
     int has_iso;
+    int inside; /* --inside greater|less (images): ANISTAR_INSIDE_GREATER / _LESS, 0 unset */
 } surface_opts;
+
+/* What a SURFACE FILE is, by its extension (case-insensitive). */
+enum { FILE_UNKNOWN, FILE_MESH, FILE_IMAGE };
+
+static int file_kind(const char *path) {
+    const char *slash = strrchr(path, '/'), *dot = strrchr(slash ? slash : path, '.');
+    if (!dot) return FILE_UNKNOWN;
+    static const struct {
+        const char *ext;
+        int kind;
+    } exts[] = {{"off", FILE_MESH},   {"obj", FILE_MESH},   {"ply", FILE_MESH},
+                {"stl", FILE_MESH},   {"mesh", FILE_MESH},  {"inr", FILE_IMAGE},
+                {"nrrd", FILE_IMAGE}, {"nhdr", FILE_IMAGE}, {"mha", FILE_IMAGE},
+                {"mhd", FILE_IMAGE}};
+    for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++) {
+        const char *a = dot + 1, *b = exts[i].ext;
+        while (*a && *b && (*a | 0x20) == *b) {
+            a++;
+            b++;
+        }
+        if (!*a && !*b) return exts[i].kind;
+    }
+    return FILE_UNKNOWN;
+}
 
 /*
  * Try to consume a SURFACE option at argv[*i]. Returns 1 if consumed (*i advanced past
@@ -68,7 +94,7 @@ typedef struct surface_opts {
 static int surface_option(surface_opts *so, int argc, char **argv, int *i) {
     const char *a = argv[*i];
     int takes_value = !strcmp(a, "--implicit") || !strcmp(a, "--builtin") ||
-                      !strcmp(a, "--bound") || !strcmp(a, "--iso");
+                      !strcmp(a, "--bound") || !strcmp(a, "--iso") || !strcmp(a, "--inside");
     if (!takes_value) {
         if (a[0] == '-' && a[1] != '\0') return 0;
         if (so->file) {
@@ -101,6 +127,17 @@ static int surface_option(surface_opts *so, int argc, char **argv, int *i) {
             return -1;
         }
         so->has_bound = 1;
+    } else if (!strcmp(a, "--inside")) {
+        if (so->inside) {
+            say("--inside given twice");
+            return -1;
+        }
+        if (!strcmp(v, "greater")) so->inside = ANISTAR_INSIDE_GREATER;
+        else if (!strcmp(v, "less")) so->inside = ANISTAR_INSIDE_LESS;
+        else {
+            say("--inside expects greater or less, got '%s'", v);
+            return -1;
+        }
     } else {
         if (so->has_iso) {
             say("--iso given twice");
@@ -135,8 +172,20 @@ static int surface_check(const surface_opts *so) {
         say("--bound goes with --implicit");
         return -1;
     }
-    if (so->has_iso && !so->file) {
-        say("--iso goes with an image FILE");
+    int kind = so->file ? file_kind(so->file) : FILE_UNKNOWN;
+    if (so->file && kind == FILE_UNKNOWN) {
+        say("%s: unknown SURFACE file extension (expected a mesh .off .obj .ply .stl .mesh or "
+            "an image .inr .nrrd .nhdr .mha .mhd)",
+            so->file);
+        return -1;
+    }
+    if ((so->has_iso || so->inside) && kind != FILE_IMAGE) {
+        say("%s goes with an image FILE (.inr .nrrd .nhdr .mha .mhd)",
+            so->has_iso ? "--iso" : "--inside");
+        return -1;
+    }
+    if (kind == FILE_IMAGE && !so->has_iso) {
+        say("%s: an image needs --iso V (the isovalue of the surface)", so->file);
         return -1;
     }
     return 0;
@@ -150,9 +199,15 @@ static int surface_make(anistar_context *ctx, const surface_opts *so, anistar_su
     } else if (so->implicit) {
         st = anistar_surface_from_expression(ctx, so->implicit, so->bound, so->bound[3], s);
     } else {
-        say("%s: surface files (meshes .off .obj .ply .stl .mesh, images .inr .nrrd .mha .mhd) "
-            "are not supported yet; use --implicit or --builtin",
-            so->file);
+        /* files: every failure (unreadable, malformed, not closed, no surface at iso) is
+         * an error, not a usage error */
+        if (file_kind(so->file) == FILE_IMAGE)
+            st = anistar_surface_from_image_file(
+                ctx, so->file, so->iso, so->inside ? so->inside : ANISTAR_INSIDE_GREATER, s);
+        else
+            st = anistar_surface_read(ctx, so->file, s);
+        if (st == ANISTAR_OK) return EXIT_OK;
+        say("%s", anistar_last_error(ctx));
         return EXIT_ERROR;
     }
     if (st == ANISTAR_OK) return EXIT_OK;
@@ -279,6 +334,158 @@ done:
     return rc;
 }
 
+/* ---- render ------------------------------------------------------------------------ */
+
+/* Case-insensitive "ends with ext" (ext lowercase, with its dot). */
+static int has_extension(const char *path, const char *ext) {
+    size_t n = strlen(path), k = strlen(ext);
+    if (n <= k) return 0;
+    for (size_t i = 0; i < k; i++) {
+        char c = path[n - k + i];
+        if (c >= 'A' && c <= 'Z') c = (char)(c - 'A' + 'a');
+        if (c != ext[i]) return 0;
+    }
+    return 1;
+}
+
+/* "WxH" with 1 <= W, H <= ANISTAR_RENDER_MAX_SIDE. */
+static int parse_size(const char *s, int *w, int *h) {
+    char *end;
+    errno = 0;
+    if (*s < '0' || *s > '9') return -1;
+    long a = strtol(s, &end, 10);
+    if (errno || (*end != 'x' && *end != 'X')) return -1;
+    const char *q = end + 1;
+    if (*q < '0' || *q > '9') return -1;
+    long b = strtol(q, &end, 10);
+    if (errno || *end != '\0') return -1;
+    if (a < 1 || b < 1 || a > ANISTAR_RENDER_MAX_SIDE || b > ANISTAR_RENDER_MAX_SIDE) return -1;
+    *w = (int)a;
+    *h = (int)b;
+    return 0;
+}
+
+static int cmd_render(int argc, char **argv) {
+    anistar_render_options opt;
+    anistar_render_options_init(&opt);
+    const char *mesh = NULL, *out = NULL;
+    int seen[8] = {0};
+    static const char *const valued[] = {"-o",     "--color", "--view", "--size",
+                                         "--edges", "--sol",   "--range", "--up"};
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i];
+        int k = -1;
+        for (int j = 0; j < 8; j++)
+            if (!strcmp(a, valued[j])) k = j;
+        if (k < 0) {
+            if (a[0] == '-' && a[1] != '\0') {
+                say("render: unknown option '%s' (try 'anistar --help')", a);
+                return EXIT_USAGE;
+            }
+            if (mesh) {
+                say("render: unexpected argument '%s' (only one MESH file)", a);
+                return EXIT_USAGE;
+            }
+            mesh = a;
+            continue;
+        }
+        if (i + 1 >= argc) {
+            say("%s needs a value", a);
+            return EXIT_USAGE;
+        }
+        if (seen[k]++) {
+            say("%s given twice", a);
+            return EXIT_USAGE;
+        }
+        const char *v = argv[++i];
+        double num[2];
+        switch (k) {
+        case 0:
+            out = v;
+            break;
+        case 1:
+            if (!strcmp(v, "quality")) opt.color = ANISTAR_COLOR_QUALITY;
+            else if (!strcmp(v, "anisotropy")) opt.color = ANISTAR_COLOR_ANISOTROPY;
+            else if (!strcmp(v, "none")) opt.color = ANISTAR_COLOR_NONE;
+            else {
+                say("--color expects quality, anisotropy or none, got '%s'", v);
+                return EXIT_USAGE;
+            }
+            break;
+        case 2:
+            if (parse_numbers(v, num, 2)) {
+                say("--view expects AZ,EL (two finite numbers, degrees), got '%s'", v);
+                return EXIT_USAGE;
+            }
+            opt.azimuth = num[0];
+            opt.elevation = num[1];
+            break;
+        case 3:
+            if (parse_size(v, &opt.width, &opt.height)) {
+                say("--size expects WxH with W and H in [1, %d], got '%s'",
+                    ANISTAR_RENDER_MAX_SIDE, v);
+                return EXIT_USAGE;
+            }
+            break;
+        case 4:
+            if (!strcmp(v, "on")) opt.edges = 1;
+            else if (!strcmp(v, "off")) opt.edges = 0;
+            else {
+                say("--edges expects on or off, got '%s'", v);
+                return EXIT_USAGE;
+            }
+            break;
+        case 5:
+            opt.sol_path = v;
+            break;
+        case 6:
+            if (parse_numbers(v, num, 2) || !(num[0] < num[1])) {
+                say("--range expects MIN,MAX (finite, MIN < MAX), got '%s'", v);
+                return EXIT_USAGE;
+            }
+            opt.range_min = num[0];
+            opt.range_max = num[1];
+            break;
+        default:
+            if (strlen(v) != 1 || v[0] < 'x' || v[0] > 'z') {
+                say("--up expects x, y or z, got '%s'", v);
+                return EXIT_USAGE;
+            }
+            opt.up = v[0] - 'x';
+            break;
+        }
+    }
+    if (!mesh) {
+        say("render needs a MESH file (.off .obj .ply .stl .mesh)");
+        return EXIT_USAGE;
+    }
+    if (!out) {
+        say("render needs -o OUT.png");
+        return EXIT_USAGE;
+    }
+    if (!has_extension(out, ".png")) {
+        say("render: the output '%s' must end with .png", out);
+        return EXIT_USAGE;
+    }
+    if (opt.sol_path && opt.color != ANISTAR_COLOR_ANISOTROPY) {
+        say("--sol goes with --color anisotropy");
+        return EXIT_USAGE;
+    }
+    anistar_context *ctx = anistar_context_new(NULL);
+    if (!ctx) {
+        say("out of memory");
+        return EXIT_ERROR;
+    }
+    int rc = EXIT_OK;
+    anistar_status st = anistar_render_file(ctx, mesh, out, &opt);
+    if (st) {
+        say("%s", anistar_last_error(ctx));
+        rc = st == ANISTAR_EINVAL ? EXIT_USAGE : EXIT_ERROR;
+    }
+    anistar_context_free(ctx);
+    return rc;
+}
+
 /* ---- commands ---------------------------------------------------------------------- */
 
 typedef struct command {
@@ -290,9 +497,10 @@ typedef struct command {
 static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
     {"mesh", "mesh SURFACE [options] -o OUT [-o OUT2 ...]   (coming)", NULL},
-    {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]   "
-               "(coming)",
-     NULL},
+    {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]\n"
+               "                 [--size WxH] [--edges on|off] [--up x|y|z] [--range MIN,MAX]\n"
+               "                 [--sol FILE.sol]",
+     cmd_render},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
 
@@ -304,16 +512,25 @@ static void help(void) {
     printf("\nprobe prints JSON: f and its gradient at the point, the projection of the point\n"
            "on S, and there the normal, principal curvatures and directions, and the metric\n"
            "tensor (m11 m12 m13 m22 m23 m33; default metric: curvature).\n\n"
+           "render draws a triangle mesh to a PNG image, each triangle coloured by --color:\n"
+           "quality (radius-edge ratio, the default), anisotropy (sqrt(lmax/lmin) of the\n"
+           "vertex tensors of a PLY or of --sol, else the triangle's aspect ratio) or none;\n"
+           "--view AZ,EL in degrees (default 30,20) around the --up axis (default z);\n"
+           "--size WxH (default 1024x768); --range MIN,MAX fixes the colour range.\n\n"
            "SURFACE:\n"
            "  --implicit \"EXPR\" --bound CX,CY,CZ,R   f(x,y,z) = 0, f < 0 inside, S inside the\n"
            "                                        sphere; EXPR e.g. \"R=10; r=1; "
            "(sqrt(x^2+y^2)-R)^2+z^2-r^2\"\n"
            "  --builtin NAME[,PARAM=V...][,bound=R]  a built-in surface (below)\n"
-           "  FILE.off|.obj|.ply|.stl|.mesh, FILE.inr|.nrrd|.mha|.mhd --iso V   (coming)\n\n"
+           "  FILE.off|.obj|.ply|.stl|.mesh          a closed triangle mesh\n"
+           "  FILE.inr|.nrrd|.nhdr|.mha|.mhd --iso V [--inside greater|less]\n"
+           "                                        an isosurface of a 3D image (inside:\n"
+           "                                        values greater than V, the default)\n\n"
            "--metric SPEC:\n"
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"
-           "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol (meshes, coming)\n\n"
+           "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol[,rb=R] (meshes)\n"
+           "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R (blending)\n\n"
            "built-in surfaces:\n");
     const char *name, *desc;
     for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)

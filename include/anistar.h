@@ -127,10 +127,14 @@ ANISTAR_API anistar_status anistar_last_status(const anistar_context *ctx);
  * anistar_insphere(a,b,c,d,e) > 0 when e lies inside the sphere through a, b, c, d,
  *   provided orient3d(a,b,c,d) > 0 (the sign flips otherwise); 0 when cospherical.
  *
- * Valid input range: finite coordinates whose nonzero magnitudes lie in
- * [1e-40, 1e+40] (no intermediate product of the exact evaluation underflows or
- * overflows there). NaN or infinite coordinates give a NaN result. Outside the range
- * the sign may be wrong.
+ * Valid input range: finite coordinates, each either 0 or of magnitude in
+ * [1e-40, 1e+40]. There every intermediate value of the exact evaluation is a multiple
+ * of 2^-1074 (so underflow loses nothing) and stays far below overflow; the sign is
+ * proved exact and is checked against exact rational arithmetic at magnitudes from
+ * 1e-40 to 1e+40. (In practice exactness holds further, to about [1e-90, 1e+100] for
+ * orient3d and [1e-48, 1e+60] for insphere, but that is not promised.) Outside the
+ * range the sign may be wrong; an overflow of the evaluation usually returns NaN.
+ * NaN or infinite coordinates return NaN, and so does a NULL argument.
  */
 ANISTAR_API double anistar_orient3d(const double a[3], const double b[3], const double c[3],
                                     const double d[3]);
@@ -159,6 +163,230 @@ ANISTAR_API anistar_status anistar_tensor_distance(anistar_context *ctx, const d
 /* The symmetric square root F = M^(1/2) (F^T F = M), as 6 doubles. */
 ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const double m[6],
                                                double f[6]);
+
+/* ==== MESHER (issue 6) ==== */
+
+/* ------------------------------------------------------------------------------------ */
+/* Mesher                                                                                 */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * The mesher (opaque) builds an anisotropic Delaunay mesh of a surface S for a metric
+ * field (Boissonnat, Shi, Tournois, Yvinec): the star of every output vertex v is the
+ * restricted Delaunay star of v for v's own metric M_v; every facet has radius-edge ratio
+ * <= rho0 and surface circumradius < r0 in the metric of each of its three vertices, and
+ * the metric distortion between its vertices is below gamma0. The mesher keeps pointers to
+ * the surface and the metric (both must outlive it) and uses the context it was created
+ * with for memory and messages. Two meshers on two contexts run in two threads at once.
+ */
+typedef struct anistar_mesher anistar_mesher;
+typedef struct anistar_mesh anistar_mesh;
+typedef struct anistar_surface anistar_surface;
+typedef struct anistar_metric anistar_metric;
+
+/* Parameters of anistar_mesher_set (ranges checked; ANISTAR_EINVAL names the rule). */
+typedef enum anistar_param {
+    ANISTAR_PARAM_R0 = 0,       /* size bound: surface circumradius in vertex metrics; > 0
+                                   (default 0.1) */
+    ANISTAR_PARAM_GAMMA0,       /* distortion bound between a facet's vertex metrics; > 1
+                                   (default 1.5) */
+    ANISTAR_PARAM_RHO0,         /* radius-edge ratio bound; > 1 (default 3) */
+    ANISTAR_PARAM_BETA,         /* Pick_valid: "small" configurations; >= 1 (default 2.5) */
+    ANISTAR_PARAM_DELTA,        /* Pick_valid: picking ratio; in (0, 1) (default 0.3) */
+    ANISTAR_PARAM_APPROX,       /* approximation bound (distance facet-S); >= 0, 0 = off
+                                   (default 0) */
+    ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices;
+                                   integer in [0, 2000000], 0 = the limit 2000000 */
+    ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
+                                   refinement; >= 0, 0 = no limit (default) */
+    ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
+                                   [0, 2^53] (default 0) */
+    ANISTAR_PARAM_PICK_TRIES    /* Pick_valid tries before the center is taken; integer
+                                   in [1, 100000] (default 60) */
+} anistar_param;
+
+/* A mesher for surface s and metric field m (both not owned). */
+ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anistar_surface *s,
+                                              const anistar_metric *m, anistar_mesher **out);
+ANISTAR_API void anistar_mesher_free(anistar_mesher *m);
+
+/* Set a parameter. ANISTAR_EINVAL (message in the mesher's context) for an unknown key or
+ * a value out of range; the parameter then keeps its value. */
+ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param key,
+                                              double value);
+/* Read a parameter's current value. */
+ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_param key,
+                                              double *value);
+
+/* Progress callback: called every few hundred insertions with the number of vertices,
+ * of inconsistent facets, and the seconds elapsed; return nonzero to cancel the run
+ * (anistar_mesher_run then returns ANISTAR_ECANCELED). */
+typedef int (*anistar_progress_fn)(size_t vertices, size_t inconsistent, double seconds,
+                                   void *user);
+ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
+                                             void *user);
+
+/*
+ * Run the mesher. Returns ANISTAR_OK (no rule applies any more: every facet consistent,
+ * a closed mesh when S is closed and r0 small enough), ANISTAR_INCOMPLETE (max_vertices
+ * or max_seconds reached: *out holds the consistent facets only; its statistics count
+ * the others), ANISTAR_ECANCELED, or an error (ANISTAR_EINVAL for a metric that is not
+ * finite and positive definite somewhere, surface errors, ANISTAR_ENOMEM). *out is set
+ * (to a mesh to free with anistar_mesh_free) for OK and INCOMPLETE, NULL otherwise. The
+ * result depends only on the inputs and the seed (not on the time limit unless reached).
+ */
+ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out);
+
+/* ------------------------------------------------------------------------------------ */
+/* Output mesh                                                                            */
+/* ------------------------------------------------------------------------------------ */
+
+#define ANISTAR_HISTOGRAM_BINS 64
+
+/* Statistics of a mesh (copied out by anistar_mesh_get_stats). */
+typedef struct anistar_mesh_stats {
+    size_t vertices;              /* output vertices (sites of output facets) */
+    size_t facets;                /* output triangles */
+    size_t inconsistent_facets;   /* facets left out because inconsistent (0 when OK) */
+    size_t poles;                 /* internal sites near the medial axis (not output) */
+    long long euler_characteristic; /* V - E + F of the output */
+    int closed_manifold;          /* every edge in 2 triangles, every vertex link 1 cycle */
+    int complete;                 /* 1 if the run finished (ANISTAR_OK) */
+    double rho_max;               /* largest radius-edge ratio of a facet in the metric
+                                     of one of its vertices */
+    double r_max;                 /* largest surface circumradius r_v(tau) over the facets
+                                     and their three vertex metrics */
+    double gamma_max;             /* largest distortion between two vertices of a facet */
+    double histogram_width;       /* bin width of histogram */
+    /* squared radius-edge ratios of every facet in each of its 3 vertex metrics: bin i
+     * counts values in [i w, (i+1) w), the last bin also everything above */
+    uint64_t histogram[ANISTAR_HISTOGRAM_BINS];
+    uint64_t insertions_initial;  /* initial surface points */
+    uint64_t insertions_rule[3];  /* rule 1 (size, distortion), 2 (shape), 3 (consistency) */
+    uint64_t pick_valid_tries;    /* random candidates tested by Pick_valid */
+    uint64_t pick_valid_failures; /* Pick_valid calls that fell back to the center */
+    double seconds_total, seconds_init, seconds_refine, seconds_output;
+} anistar_mesh_stats;
+
+ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);
+ANISTAR_API size_t anistar_mesh_triangle_count(const anistar_mesh *mesh);
+/* Copy out the vertices (3 per vertex), the triangles (3 0-based indices each,
+ * counterclockwise seen from outside) and the per-vertex metric tensors (6 each). The
+ * arrays must hold the counts above. */
+ANISTAR_API void anistar_mesh_get_vertices(const anistar_mesh *mesh, double *xyz);
+ANISTAR_API void anistar_mesh_get_triangles(const anistar_mesh *mesh, int32_t *tri);
+ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tensors);
+ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats);
+/* Write the mesh, the format chosen by the extension of path: .off .obj .ply .stl .mesh
+ * .vtk .vtu (with the tensors where the format holds them) or .sol (the tensors alone).
+ * ctx receives the message (NULL: the mesh's context). ANISTAR_EFORMAT for an unknown
+ * extension, ANISTAR_EIO, ANISTAR_EINVAL (e.g. .stl with coordinates beyond float). */
+ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
+                                              const char *path);
+ANISTAR_API void anistar_mesh_free(anistar_mesh *mesh);
+
+/* ==== END MESHER ==== */
+
+/* ==== RENDERING (issue 5) ==== */
+
+/* ------------------------------------------------------------------------------------ */
+/* Rendering meshes to PNG                                                                */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * A dependency-free renderer: a triangle mesh drawn orthographically with flat shading,
+ * a z-buffer and supersampling, optionally coloured per triangle through a perceptual
+ * colormap (viridis) with a colour bar, written as an 8-bit RGB PNG. The output is a
+ * pure function of the input (the same mesh and options give the same bytes).
+ *
+ * Per-triangle values (ANISTAR_COLOR_...):
+ *   QUALITY     the radius-edge ratio circumradius / shortest edge, Euclidean
+ *               (1/sqrt(3) ~ 0.577 for an equilateral triangle; larger is worse);
+ *   ANISOTROPY  with per-vertex tensors: the largest over the triangle's three vertices
+ *               of sqrt(lambda_max / lambda_min) of the tensor (the ratio of the longest
+ *               to the shortest prescribed edge length; 1 for an isotropic metric; NaN,
+ *               drawn grey, where a tensor is not positive definite); without tensors:
+ *               the triangle's own aspect ratio, longest edge / shortest altitude
+ *               (2/sqrt(3) ~ 1.155 for an equilateral triangle);
+ *   NONE        no colour (a light grey-blue), no legend.
+ * A degenerate triangle (zero area) has an infinite QUALITY and aspect: it takes the top
+ * colour and does not widen the automatic range.
+ */
+typedef enum anistar_color_by {
+    ANISTAR_COLOR_NONE = 0,
+    ANISTAR_COLOR_QUALITY = 1,
+    ANISTAR_COLOR_ANISOTROPY = 2
+} anistar_color_by;
+
+/* The largest image width and height. */
+#define ANISTAR_RENDER_MAX_SIDE 16384
+
+/*
+ * Rendering options: all inputs; fill with anistar_render_options_init, then change
+ * fields. The view is orthographic: the `up` axis points up on screen, the viewer sits
+ * at azimuth `azimuth` (degrees, in the plane normal to `up`; for up = z, 0 looks from
+ * +x and 90 from +y) and elevation `elevation` (degrees above that plane). The mesh is
+ * fitted to the image with a 5% margin. Edges are 1-pixel lines on the visible
+ * triangles (hidden edges never show); they fade out on triangles whose projection is
+ * less than 4 pixels high and vanish below 1.5 pixels, so dense meshes do not turn black.
+ */
+typedef struct anistar_render_options {
+    int width, height;          /* pixels, 1..ANISTAR_RENDER_MAX_SIDE (1024 x 768) */
+    double azimuth, elevation;  /* degrees, finite (30, 20) */
+    int up;                     /* the vertical axis: 0 = x, 1 = y, 2 = z (2) */
+    anistar_color_by color;     /* per-triangle values (ANISTAR_COLOR_QUALITY) */
+    int edges;                  /* 1: draw the edges (1), 0: not */
+    int legend;                 /* 1: colour bar with min, middle, max and title (1) */
+    int supersample;            /* samples per pixel side, 1..4 (3) */
+    double range_min, range_max; /* colour range; both NaN (default): the min and max of
+                                    the finite values; else finite with min < max
+                                    (values outside are clamped to the ends) */
+    int compress;               /* 1: deflate (fixed Huffman codes) (1), 0: stored */
+    const char *sol_path;       /* anistar_render_file: a Medit .sol of per-vertex
+                                   tensors for ANISOTROPY (NULL); borrowed for the call */
+} anistar_render_options;
+
+/* Fill *opt with the defaults above. */
+ANISTAR_API void anistar_render_options_init(anistar_render_options *opt);
+
+/*
+ * Render the triangle mesh in the file mesh_path (.off .obj .ply .stl .mesh; PLY vertex
+ * properties m11 m12 m13 m22 m23 m33 are read as tensors) to the PNG file png_path.
+ * Tensors for ANISOTROPY come from opt->sol_path when given (they replace the PLY's).
+ * opt == NULL uses the defaults. Returns EINVAL (bad options, NULL paths), EIO (a file
+ * that cannot be read or written: the message names it; a partial PNG is removed),
+ * EFORMAT (a malformed mesh or .sol, a .sol whose vertex count differs), ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char *mesh_path,
+                                               const char *png_path,
+                                               const anistar_render_options *opt);
+
+/*
+ * Render a mesh given as arrays: nv vertices xyz (3 nv doubles), nt triangles tri
+ * (3 nt 0-based indices), tensors NULL or 6 nv doubles (m11 m12 m13 m22 m23 m33). When
+ * values is not NULL it holds nt per-triangle values that are drawn instead of
+ * opt->color (NaN: grey, +-inf: the ends of the colormap) and label titles the legend
+ * (NULL: none; letters, digits and . - + ( ) / _ : = are drawn, others as '?').
+ * nt == 0 gives an image of the background. EINVAL for bad options, a NULL array with
+ * a nonzero count, an index outside [0, nv), a non-finite coordinate; EIO; ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_render_arrays(anistar_context *ctx, size_t nv,
+                                                 const double *xyz, size_t nt,
+                                                 const int32_t *tri, const double *tensors,
+                                                 const double *values, const char *label,
+                                                 const char *png_path,
+                                                 const anistar_render_options *opt);
+
+/*
+ * The per-triangle values of `by` (QUALITY or ANISOTROPY, as above) for the arrays of
+ * anistar_render_arrays, into out[nt]. EINVAL for NONE or an invalid mesh.
+ */
+ANISTAR_API anistar_status anistar_triangle_values(anistar_context *ctx, anistar_color_by by,
+                                                   size_t nv, const double *xyz, size_t nt,
+                                                   const int32_t *tri, const double *tensors,
+                                                   double *out);
+
+/* ==== END RENDERING ==== */
 
 /* ==== SURFACES AND METRIC FIELDS (issue 4) — section owned by the surface layer ==== */
 
@@ -229,6 +457,69 @@ ANISTAR_API anistar_status anistar_surface_builtin(anistar_context *ctx, const c
 ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **name,
                                                         const char **description);
 
+/*
+ * A closed triangle mesh read from a file, the format chosen by the extension
+ * (case-insensitive): .off .obj .ply .stl .mesh (Medit). The mesh must be a closed,
+ * orientable 2-manifold without zero-area triangles; its triangles are reoriented
+ * consistently (outward) and vertices of no triangle are ignored. Triangle-mesh surfaces
+ * have no function f: anistar_surface_eval gives the signed distance to the mesh
+ * (negative inside) and its gradient, and no Hessian (ANISTAR_EINVAL if h is asked);
+ * side, crossing and projection are exact queries on the triangles (the projection is
+ * the closest point of the mesh); normals, curvatures and directions come from
+ * per-vertex polynomial fits ("jets", degree 2 on the 16 nearest vertices, paper 5.2.3)
+ * interpolated over the triangle of the closest point.
+ * Returns ANISTAR_EIO (the file cannot be read), ANISTAR_EFORMAT (malformed file, unknown
+ * extension, or a mesh that is not a closed 2-manifold: the message names every problem
+ * with its count, e.g. "open.off: not a closed 2-manifold: 12 border edges"),
+ * ANISTAR_EINVAL for an image extension (.inr .nrrd .nhdr .mha .mhd: "an image needs an
+ * isovalue: use anistar_surface_from_image_file"), ANISTAR_ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_surface_read(anistar_context *ctx, const char *path,
+                                                anistar_surface **out);
+
+/* The same from arrays: nv vertices xyz (x y z each), nt triangles tri (three 0-based
+ * vertex indices each). Both are copied. ANISTAR_EINVAL for an index out of range or a
+ * coordinate that is not finite (or not 0 and outside [1e-100, 1e100] in magnitude),
+ * ANISTAR_EFORMAT for a mesh that is not a closed 2-manifold (as above). */
+ANISTAR_API anistar_status anistar_surface_from_triangles(anistar_context *ctx,
+                                                          const double *xyz, size_t nv,
+                                                          const int32_t *tri, size_t nt,
+                                                          anistar_surface **out);
+
+/* Which side of an isovalue is inside an image surface. */
+#define ANISTAR_INSIDE_GREATER 1 /* inside where the image value exceeds iso (gray images) */
+#define ANISTAR_INSIDE_LESS (-1) /* inside where the image value is below iso */
+
+/*
+ * The isosurface value = iso of a 3D image file (.inr .nrrd .nhdr .mha .mhd; gzip and
+ * bzip2 encodings are not supported): the image is reconstructed by a cubic B-spline of
+ * its voxels (C2, interpolating), f = iso - value with inside = ANISTAR_INSIDE_GREATER
+ * (f < 0 where the value exceeds iso), f = value - iso with ANISTAR_INSIDE_LESS. Outside
+ * the image the reconstruction tends to a background value on the outside side of iso
+ * (the smallest voxel value for GREATER, the largest for LESS), so an object touching the
+ * border of the image still gives a closed surface. The bounding sphere is computed
+ * (the grid grown by a margin that provably contains S). f, its gradient and Hessian are
+ * exact derivatives of the spline (world coordinates: spacing and directions included).
+ * The voxels are prefiltered into a copy (8 bytes per voxel); the file is not kept.
+ * Returns ANISTAR_EIO, ANISTAR_EFORMAT (the image readers' errors), ANISTAR_EINVAL (inside
+ * not +1 or -1, iso not finite), ANISTAR_ENOSURFACE (iso not strictly between the
+ * smallest and largest voxel values), ANISTAR_ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_surface_from_image_file(anistar_context *ctx,
+                                                           const char *path, double iso,
+                                                           int inside, anistar_surface **out);
+
+/* The same from voxels in memory: dims[0] x dims[1] x dims[2] doubles, x fastest (voxel
+ * (i,j,k) = voxels[i + dims[0] (j + dims[1] k)]), spacing[3] > 0 (NULL: 1 1 1) and
+ * origin[3] (NULL: 0 0 0) the world position of voxel (0,0,0)'s center; axis-aligned.
+ * Everything is copied. ANISTAR_EINVAL also for a zero dimension or a non-finite voxel. */
+ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
+                                                      const double *voxels,
+                                                      const size_t dims[3],
+                                                      const double spacing[3],
+                                                      const double origin[3], double iso,
+                                                      int inside, anistar_surface **out);
+
 /* Free a surface (NULL is ok). Every metric made on it must have been freed before. */
 ANISTAR_API void anistar_surface_free(anistar_surface *s);
 
@@ -236,7 +527,10 @@ ANISTAR_API void anistar_surface_free(anistar_surface *s);
 ANISTAR_API anistar_status anistar_surface_bound(const anistar_surface *s, double center[3],
                                                  double *radius);
 
-/* f at p, and when g (h) is not NULL its gradient (Hessian, m11 m12 m13 m22 m23 m33). */
+/* f at p, and when g (h) is not NULL its gradient (Hessian, m11 m12 m13 m22 m23 m33).
+ * Triangle-mesh surfaces: f is the signed distance to the mesh (negative inside) and g
+ * its gradient (the unit vector from the closest point, the normal on the mesh); asking
+ * for h is ANISTAR_EINVAL. */
 ANISTAR_API anistar_status anistar_surface_eval(const anistar_surface *s, const double p[3],
                                                 double *f, double g[3], double h[6]);
 
@@ -290,9 +584,9 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
                                  void *user);
 
 /* A field from a SPEC, the syntax of the command line's --metric (docs/cli.md):
- *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]
+ *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P][,degree=D][,k=K][,rb=R]
  *   | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
- *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE
+ *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE[,rb=R]
  * Options follow the name (or the expression) after commas at parenthesis depth 0:
  * "hessian:max(x,y)^2,eps=0.5". Defaults: curvature eps = 1/R (R the bounding radius),
  * power 1; shock lambda 0.6, phi 1; gradient phi 1; hessian power 0.5 and eps = 1e-3 x
@@ -300,8 +594,18 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
  * along the normal) = the largest tangential eigenvalue of F over a sample of S.
  * ANISTAR_EINVAL for an unknown name or option or a bad value, ANISTAR_EFORMAT for a
  * malformed expression or unbalanced parentheses; computing defaults samples S and may
- * return ANISTAR_ENOSURFACE. sol:FILE is ANISTAR_EINVAL for now (needs a triangle-mesh
- * surface). */
+ * return ANISTAR_ENOSURFACE.
+ * On triangle-mesh surfaces (paper 5.2.3), curvature and sol are per-vertex tensors M(v)
+ * blended with Gaussian weights exp(-|p - v|^2 / rb^2) (normalised; vertices whose weight
+ * is below exp(-3.5^2) times the nearest vertex's are left out, a relative change of
+ * ~6e-5, and the weights are lowered by that amount so the field stays continuous).
+ * curvature: jets of degree D (2, 3 or 4; default 2) fitted on the K nearest vertices
+ * (default 16 for degree 2, 28 for 3 and 4; at most 64), e_n defaulting to the largest
+ * e_1 over the vertices (paper 5.4); sol:FILE reads one tensor per vertex of the input mesh (Medit
+ * .sol; ANISTAR_EFORMAT when the count differs or a tensor is not positive definite).
+ * rb defaults to the mean distance from a vertex to its K nearest vertices. The blended
+ * field is continuous and defined off the surface too. sol:FILE on another kind of
+ * surface, and degree, k or rb there, are ANISTAR_EINVAL. */
 ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
                                                     const anistar_surface *s, const char *spec,
                                                     anistar_metric **out);

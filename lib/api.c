@@ -174,10 +174,383 @@ ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const doubl
     return ANISTAR_OK;
 }
 
+/* ==== MESHER (issue 6) ==== */
+
+#include "mesher/mesher.h"
+
+struct anistar_mesher {
+    anistar_context *ctx;
+    const as_surface *surf;
+    const as_field *field;
+    as_mesher_params prm;
+    anistar_progress_fn progress;
+    void *user;
+};
+
+ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anistar_surface *s,
+                                              const anistar_metric *m, anistar_mesher **out) {
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_new: out is NULL");
+    *out = NULL;
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!s || !m) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_new: NULL surface or metric");
+    anistar_mesher *me = as_alloc(ctx, sizeof *me);
+    if (!me) return as_fail(ctx, ANISTAR_ENOMEM, "anistar_mesher_new: out of memory");
+    memset(me, 0, sizeof *me);
+    me->ctx = ctx;
+    me->surf = s;
+    me->field = m;
+    as_mesher_params_default(&me->prm);
+    *out = me;
+    return ANISTAR_OK;
+}
+
+ANISTAR_API void anistar_mesher_free(anistar_mesher *m) {
+    if (m) as_free(m->ctx, m, sizeof *m);
+}
+
+static int as_api_is_int(double v, double lo, double hi) {
+    return isfinite(v) && v == floor(v) && v >= lo && v <= hi;
+}
+
+ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param key,
+                                              double value) {
+    if (!m) return ANISTAR_EINVAL;
+    anistar_context *ctx = m->ctx;
+    as_mesher_params *p = &m->prm;
+    switch (key) {
+    case ANISTAR_PARAM_R0:
+        if (!(isfinite(value) && value > 0))
+            return as_fail(ctx, ANISTAR_EINVAL, "r0 must be a finite number > 0, got %g", value);
+        p->r0 = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_GAMMA0:
+        if (!(isfinite(value) && value > 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "gamma0 must be a finite number > 1, got %g", value);
+        p->gamma0 = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_RHO0:
+        if (!(isfinite(value) && value > 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "rho0 must be a finite number > 1, got %g", value);
+        p->rho0 = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_BETA:
+        if (!(isfinite(value) && value >= 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "beta must be a finite number >= 1, got %g", value);
+        p->beta = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_DELTA:
+        if (!(value > 0 && value < 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "delta must be in (0, 1), got %g", value);
+        p->delta = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_APPROX:
+        if (!(isfinite(value) && value >= 0))
+            return as_fail(ctx, ANISTAR_EINVAL, "approx must be a finite number >= 0, got %g", value);
+        p->approx = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_MAX_VERTICES:
+        if (!as_api_is_int(value, 0, 2000000))
+            return as_fail(ctx, ANISTAR_EINVAL,
+                           "max_vertices must be an integer in [0, 2000000], got %g", value);
+        p->max_vertices = (int64_t)value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_MAX_SECONDS:
+        if (!(isfinite(value) && value >= 0))
+            return as_fail(ctx, ANISTAR_EINVAL, "max_seconds must be a finite number >= 0, got %g",
+                           value);
+        p->max_seconds = value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_SEED:
+        if (!as_api_is_int(value, 0, 9007199254740992.0))
+            return as_fail(ctx, ANISTAR_EINVAL, "seed must be an integer in [0, 2^53], got %g",
+                           value);
+        p->seed = (uint64_t)value;
+        return ANISTAR_OK;
+    case ANISTAR_PARAM_PICK_TRIES:
+        if (!as_api_is_int(value, 1, 100000))
+            return as_fail(ctx, ANISTAR_EINVAL, "pick_tries must be an integer in [1, 100000], got %g",
+                           value);
+        p->pick_tries = (int32_t)value;
+        return ANISTAR_OK;
+    }
+    return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_set: unknown parameter %d", (int)key);
+}
+
+ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_param key,
+                                              double *value) {
+    if (!m || !value) return ANISTAR_EINVAL;
+    const as_mesher_params *p = &m->prm;
+    switch (key) {
+    case ANISTAR_PARAM_R0: *value = p->r0; return ANISTAR_OK;
+    case ANISTAR_PARAM_GAMMA0: *value = p->gamma0; return ANISTAR_OK;
+    case ANISTAR_PARAM_RHO0: *value = p->rho0; return ANISTAR_OK;
+    case ANISTAR_PARAM_BETA: *value = p->beta; return ANISTAR_OK;
+    case ANISTAR_PARAM_DELTA: *value = p->delta; return ANISTAR_OK;
+    case ANISTAR_PARAM_APPROX: *value = p->approx; return ANISTAR_OK;
+    case ANISTAR_PARAM_MAX_VERTICES: *value = (double)p->max_vertices; return ANISTAR_OK;
+    case ANISTAR_PARAM_MAX_SECONDS: *value = p->max_seconds; return ANISTAR_OK;
+    case ANISTAR_PARAM_SEED: *value = (double)p->seed; return ANISTAR_OK;
+    case ANISTAR_PARAM_PICK_TRIES: *value = p->pick_tries; return ANISTAR_OK;
+    }
+    return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
+}
+
+ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
+                                             void *user) {
+    if (!m) return;
+    m->progress = fn;
+    m->user = user;
+}
+
+ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out) {
+    if (out) *out = NULL;
+    if (!m) return ANISTAR_EINVAL;
+    if (!out) return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_run: out is NULL");
+    return as_mesher_run(m->ctx, m->surf, m->field, &m->prm, m->progress, m->user, out);
+}
+
+ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh) {
+    return mesh ? mesh->tm.nv : 0;
+}
+ANISTAR_API size_t anistar_mesh_triangle_count(const anistar_mesh *mesh) {
+    return mesh ? mesh->tm.nt : 0;
+}
+ANISTAR_API void anistar_mesh_get_vertices(const anistar_mesh *mesh, double *xyz) {
+    if (mesh && xyz && mesh->tm.nv) memcpy(xyz, mesh->tm.xyz, 3 * mesh->tm.nv * sizeof *xyz);
+}
+ANISTAR_API void anistar_mesh_get_triangles(const anistar_mesh *mesh, int32_t *tri) {
+    if (mesh && tri && mesh->tm.nt) memcpy(tri, mesh->tm.tri, 3 * mesh->tm.nt * sizeof *tri);
+}
+ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tensors) {
+    if (mesh && tensors && mesh->tm.nv && mesh->tm.tensor)
+        memcpy(tensors, mesh->tm.tensor, 6 * mesh->tm.nv * sizeof *tensors);
+}
+ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats) {
+    if (mesh && stats) *stats = mesh->stats;
+}
+ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
+                                              const char *path) {
+    if (!mesh) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesh_write: mesh is NULL");
+    if (!ctx) ctx = mesh->ctx;
+    if (!path) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesh_write: path is NULL");
+    return as_mesh_write(ctx, path, &mesh->tm, NULL, 0);
+}
+ANISTAR_API void anistar_mesh_free(anistar_mesh *mesh) { as_mesh_free(mesh); }
+
+/* ==== END MESHER ==== */
+
+/* ==== RENDERING (issue 5) ==== */
+
+#include "io/meshio.h"
+#include "io/png.h"
+#include "io/render.h"
+
+ANISTAR_API void anistar_render_options_init(anistar_render_options *opt) {
+    if (!opt) return;
+    memset(opt, 0, sizeof *opt);
+    opt->width = 1024;
+    opt->height = 768;
+    opt->azimuth = 30;
+    opt->elevation = 20;
+    opt->up = 2;
+    opt->color = ANISTAR_COLOR_QUALITY;
+    opt->edges = 1;
+    opt->legend = 1;
+    opt->supersample = 3;
+    opt->range_min = NAN;
+    opt->range_max = NAN;
+    opt->compress = 1;
+    opt->sol_path = NULL;
+}
+
+/* Check the options and translate them into renderer parameters. */
+static anistar_status as_api_render_params(anistar_context *ctx,
+                                           const anistar_render_options *opt,
+                                           as_render_params *p) {
+    if (opt->width < 1 || opt->width > ANISTAR_RENDER_MAX_SIDE || opt->height < 1 ||
+        opt->height > ANISTAR_RENDER_MAX_SIDE)
+        return as_fail(ctx, ANISTAR_EINVAL, "render: image size %dx%d outside [1, %d]",
+                       opt->width, opt->height, ANISTAR_RENDER_MAX_SIDE);
+    if (opt->color != ANISTAR_COLOR_NONE && opt->color != ANISTAR_COLOR_QUALITY &&
+        opt->color != ANISTAR_COLOR_ANISOTROPY)
+        return as_fail(ctx, ANISTAR_EINVAL, "render: unknown colour mode %d", (int)opt->color);
+    if ((opt->edges != 0 && opt->edges != 1) || (opt->legend != 0 && opt->legend != 1) ||
+        (opt->compress != 0 && opt->compress != 1))
+        return as_fail(ctx, ANISTAR_EINVAL, "render: edges, legend and compress must be 0 or 1");
+    as_render_params_init(p);
+    p->width = (uint32_t)opt->width;
+    p->height = (uint32_t)opt->height;
+    p->azimuth = opt->azimuth;
+    p->elevation = opt->elevation;
+    p->up = opt->up;
+    p->supersample = opt->supersample;
+    p->edges = opt->edges;
+    p->legend = opt->legend;
+    p->vmin = opt->range_min;
+    p->vmax = opt->range_max;
+    /* The renderer checks the rest (angles, up, supersample, range) with its messages. */
+    return as_render_params_check(ctx, p);
+}
+
+/* Validate mesh arrays (indices and coordinates). */
+static anistar_status as_api_mesh_arrays(anistar_context *ctx, const char *fn, size_t nv,
+                                         const double *xyz, size_t nt, const int32_t *tri) {
+    if ((nv && !xyz) || (nt && !tri))
+        return as_fail(ctx, ANISTAR_EINVAL, "%s: NULL coordinates or triangles", fn);
+    for (size_t i = 0; i < 3 * nv; i++)
+        if (!isfinite(xyz[i]))
+            return as_fail(ctx, ANISTAR_EINVAL, "%s: vertex %zu has a non-finite coordinate",
+                           fn, i / 3);
+    for (size_t i = 0; i < 3 * nt; i++)
+        if (tri[i] < 0 || (size_t)tri[i] >= nv)
+            return as_fail(ctx, ANISTAR_EINVAL,
+                           "%s: triangle %zu: vertex index %ld out of range [0, %zu)", fn, i / 3,
+                           (long)tri[i], nv);
+    return ANISTAR_OK;
+}
+
+/* The per-triangle values of `by` (arrays already validated). */
+static anistar_status as_api_tri_values(anistar_context *ctx, anistar_color_by by, size_t nv,
+                                        const double *xyz, size_t nt, const int32_t *tri,
+                                        const double *tensors, double *out) {
+    if (by == ANISTAR_COLOR_QUALITY || (by == ANISTAR_COLOR_ANISOTROPY && !tensors)) {
+        for (size_t t = 0; t < nt; t++) {
+            const int32_t *v = tri + 3 * t;
+            const double *a = xyz + 3 * (size_t)v[0], *b = xyz + 3 * (size_t)v[1],
+                         *c = xyz + 3 * (size_t)v[2];
+            out[t] = by == ANISTAR_COLOR_QUALITY ? as_tri_radius_edge(a, b, c)
+                                                 : as_tri_aspect(a, b, c);
+        }
+        return ANISTAR_OK;
+    }
+    /* Anisotropy of the vertex tensors: sqrt(lambda_max / lambda_min). */
+    double *va = as_alloc_array(ctx, nv, sizeof(double));
+    if (nv && !va) return as_fail(ctx, ANISTAR_ENOMEM, "render: out of memory");
+    for (size_t i = 0; i < nv; i++) {
+        double w[3], vec[9];
+        va[i] = NAN;
+        if (as_sym3_eigen(tensors + 6 * i, w, vec) == 0 && w[0] > 0) va[i] = sqrt(w[2] / w[0]);
+    }
+    for (size_t t = 0; t < nt; t++) {
+        double m = -INFINITY;
+        for (int k = 0; k < 3; k++) {
+            double x = va[tri[3 * t + (size_t)k]];
+            m = isnan(x) || isnan(m) ? NAN : (x > m ? x : m);
+        }
+        out[t] = m;
+    }
+    as_free(ctx, va, nv * sizeof(double));
+    return ANISTAR_OK;
+}
+
+ANISTAR_API anistar_status anistar_triangle_values(anistar_context *ctx, anistar_color_by by,
+                                                   size_t nv, const double *xyz, size_t nt,
+                                                   const int32_t *tri, const double *tensors,
+                                                   double *out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (by != ANISTAR_COLOR_QUALITY && by != ANISTAR_COLOR_ANISOTROPY)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_triangle_values: `by` must be QUALITY or ANISOTROPY");
+    if (nt && !out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_triangle_values: NULL out");
+    anistar_status st = as_api_mesh_arrays(ctx, "anistar_triangle_values", nv, xyz, nt, tri);
+    if (st) return st;
+    return as_api_tri_values(ctx, by, nv, xyz, nt, tri, tensors, out);
+}
+
+/* Render validated arrays with validated parameters to png_path. */
+static anistar_status as_api_render(anistar_context *ctx, const as_render_params *p,
+                                    const anistar_render_options *opt, size_t nv,
+                                    const double *xyz, size_t nt, const int32_t *tri,
+                                    const double *tensors, const double *values,
+                                    const char *label, const char *png_path) {
+    double *own = NULL;
+    as_render_params q = *p;
+    if (!values && opt->color != ANISTAR_COLOR_NONE && nt > 0) {
+        own = as_alloc_array(ctx, nt, sizeof(double));
+        if (!own) return as_fail(ctx, ANISTAR_ENOMEM, "render: out of memory");
+        anistar_status st = as_api_tri_values(ctx, opt->color, nv, xyz, nt, tri, tensors, own);
+        if (st) {
+            as_free(ctx, own, nt * sizeof(double));
+            return st;
+        }
+        values = own;
+        label = opt->color == ANISTAR_COLOR_QUALITY ? "radius-edge ratio"
+                : tensors                           ? "anisotropy"
+                                                    : "aspect ratio";
+    }
+    q.label = label;
+    size_t n = (size_t)q.width * q.height * 3;
+    unsigned char *rgb = as_alloc(ctx, n);
+    anistar_status st;
+    if (!rgb) {
+        st = as_fail(ctx, ANISTAR_ENOMEM, "render: out of memory (%zu bytes for the image)", n);
+    } else {
+        st = as_render(ctx, &q, nv, xyz, nt, tri, values, rgb);
+        if (!st)
+            st = as_png_write(ctx, png_path, rgb, q.width, q.height, 3,
+                              opt->compress ? AS_PNG_DEFLATE : AS_PNG_STORED);
+    }
+    as_free(ctx, rgb, n);
+    as_free(ctx, own, nt * sizeof(double));
+    return st;
+}
+
+ANISTAR_API anistar_status anistar_render_arrays(anistar_context *ctx, size_t nv,
+                                                 const double *xyz, size_t nt,
+                                                 const int32_t *tri, const double *tensors,
+                                                 const double *values, const char *label,
+                                                 const char *png_path,
+                                                 const anistar_render_options *opt) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!png_path) return as_fail(ctx, ANISTAR_EINVAL, "anistar_render_arrays: NULL path");
+    anistar_render_options def;
+    if (!opt) {
+        anistar_render_options_init(&def);
+        opt = &def;
+    }
+    as_render_params p;
+    anistar_status st = as_api_render_params(ctx, opt, &p);
+    if (st) return st;
+    st = as_api_mesh_arrays(ctx, "anistar_render_arrays", nv, xyz, nt, tri);
+    if (st) return st;
+    if (nt && values == NULL && opt->color == ANISTAR_COLOR_NONE) label = NULL;
+    return as_api_render(ctx, &p, opt, nv, xyz, nt, tri, tensors, values, label, png_path);
+}
+
+ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char *mesh_path,
+                                               const char *png_path,
+                                               const anistar_render_options *opt) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!mesh_path || !png_path)
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_render_file: NULL path");
+    anistar_render_options def;
+    if (!opt) {
+        anistar_render_options_init(&def);
+        opt = &def;
+    }
+    as_render_params p;
+    anistar_status st = as_api_render_params(ctx, opt, &p);
+    if (st) return st;
+    as_trimesh m;
+    as_trimesh_init(&m);
+    st = as_mesh_read(ctx, mesh_path, &m);
+    if (!st && opt->sol_path && opt->color == ANISTAR_COLOR_ANISOTROPY)
+        st = as_trimesh_read_sol(ctx, opt->sol_path, &m);
+    if (!st)
+        st = as_api_render(ctx, &p, opt, m.nv, m.xyz, m.nt, m.tri, m.tensor, NULL, NULL,
+                           png_path);
+    as_trimesh_free(ctx, &m);
+    return st;
+}
+
+/* ==== END RENDERING ==== */
+
 /* ==== SURFACES AND METRIC FIELDS (issue 4) ==== */
 
 #include "surface/field.h"
 #include "surface/surface.h"
+
+#include <ctype.h>
 
 static int as_api_finite3(const double p[3]) {
     return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
@@ -235,6 +608,78 @@ ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **n
     return as_implicit_builtin_info(i, name, description) ? ANISTAR_EINVAL : ANISTAR_OK;
 }
 
+/* 1 iff path ends with one of the image extensions (case-insensitive). */
+static int as_api_is_image_path(const char *path) {
+    const char *slash = strrchr(path, '/');
+    const char *dot = strrchr(slash ? slash : path, '.');
+    if (!dot) return 0;
+    static const char *const ext[] = {"inr", "nrrd", "nhdr", "mha", "mhd"};
+    for (size_t i = 0; i < sizeof ext / sizeof ext[0]; i++) {
+        const char *a = dot + 1, *b = ext[i];
+        while (*a && *b && tolower((unsigned char)*a) == *b) {
+            a++;
+            b++;
+        }
+        if (!*a && !*b) return 1;
+    }
+    return 0;
+}
+
+ANISTAR_API anistar_status anistar_surface_read(anistar_context *ctx, const char *path,
+                                                anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_read: NULL out");
+    *out = NULL;
+    if (!path) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_read: NULL path");
+    if (as_api_is_image_path(path))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "%s: an image needs an isovalue: use anistar_surface_from_image_file",
+                       path);
+    return as_mesh_surface_read(ctx, path, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_triangles(anistar_context *ctx,
+                                                          const double *xyz, size_t nv,
+                                                          const int32_t *tri, size_t nt,
+                                                          anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_triangles: NULL out");
+    *out = NULL;
+    if (!xyz || !tri)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_surface_from_triangles: NULL vertices or triangles");
+    return as_mesh_surface_create(ctx, "triangles", xyz, nv, tri, nt, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_image_file(anistar_context *ctx,
+                                                           const char *path, double iso,
+                                                           int inside, anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image_file: NULL out");
+    *out = NULL;
+    if (!path) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image_file: NULL path");
+    if (inside != ANISTAR_INSIDE_GREATER && inside != ANISTAR_INSIDE_LESS)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "anistar_surface_from_image_file: inside must be ANISTAR_INSIDE_GREATER "
+                       "(1) or ANISTAR_INSIDE_LESS (-1), got %d",
+                       inside);
+    return as_image_surface_read(ctx, path, iso, inside, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
+                                                      const double *voxels,
+                                                      const size_t dims[3],
+                                                      const double spacing[3],
+                                                      const double origin[3], double iso,
+                                                      int inside, anistar_surface **out) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image: NULL out");
+    *out = NULL;
+    if (!voxels || !dims)
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image: NULL voxels or dims");
+    return as_image_surface_from_array(ctx, voxels, dims, spacing, origin, iso, inside, out);
+}
+
 ANISTAR_API void anistar_surface_free(anistar_surface *s) { as_surface_free(s); }
 
 ANISTAR_API anistar_status anistar_surface_bound(const anistar_surface *s, double center[3],
@@ -251,6 +696,13 @@ ANISTAR_API anistar_status anistar_surface_eval(const anistar_surface *s, const 
                                                 double *f, double g[3], double h[6]) {
     anistar_status st = as_api_query(s, p, f, "anistar_surface_eval");
     if (st) return st;
+    if (as_surface_is_mesh(s)) {
+        if (h)
+            return as_fail(s->ctx, ANISTAR_EINVAL,
+                           "anistar_surface_eval: a triangle-mesh surface has no Hessian (its "
+                           "f is the signed distance)");
+        return as_mesh_surface_signed_distance(s->ctx, s, p, f, g);
+    }
     return as_surface_eval(s->ctx, s, p, h ? 2 : (g ? 1 : 0), f, g, h);
 }
 

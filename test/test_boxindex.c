@@ -152,9 +152,9 @@ static void random_run(int nid, int steps, int check_every, uint64_t seed) {
             check_query(ctx, bi, &m, lo, hi, point, &out, ref);
         }
         assert_int_equal(as_boxindex_size(bi), count);
-        if (check_every && step % check_every == 0) assert_int_equal(as_boxindex_check(bi), 0);
+        if (check_every && step % check_every == 0) assert_int_equal(as_boxindex_check(ctx, bi), 0);
     }
-    assert_int_equal(as_boxindex_check(bi), 0);
+    assert_int_equal(as_boxindex_check(ctx, bi), 0);
     for (int id = 0; id < nid; id++) {
         double lo[3], hi[3];
         assert_int_equal(as_boxindex_get(bi, id, lo, hi), m.has[id]);
@@ -166,7 +166,7 @@ static void random_run(int nid, int steps, int check_every, uint64_t seed) {
     /* remove everything: empty again */
     for (int id = 0; id < nid; id++) as_boxindex_remove(bi, id);
     assert_int_equal(as_boxindex_size(bi), 0);
-    assert_int_equal(as_boxindex_check(bi), 0);
+    assert_int_equal(as_boxindex_check(ctx, bi), 0);
     double p[3] = {0, 0, 0};
     assert_int_equal(as_boxindex_query_point(ctx, bi, p, &out), ANISTAR_OK);
     assert_int_equal(out.n, 0);
@@ -216,7 +216,7 @@ static void test_extremes(void **state) {
         m.has[i] = 1;
         memcpy(m.box + 6 * i, boxes[i], sizeof boxes[i]);
     }
-    assert_int_equal(as_boxindex_check(bi), 0);
+    assert_int_equal(as_boxindex_check(ctx, bi), 0);
     as_idlist out = {0};
     int32_t ref[N];
     /* every box corner, the centre and the two diagonal corners of each box */
@@ -245,7 +245,7 @@ static void test_extremes(void **state) {
         int j = (i * 5 + 3) % N;
         assert_int_equal(as_boxindex_set(ctx, bi, i, boxes[j], boxes[j] + 3), ANISTAR_OK);
         memcpy(m.box + 6 * i, boxes[j], sizeof boxes[j]);
-        assert_int_equal(as_boxindex_check(bi), 0);
+        assert_int_equal(as_boxindex_check(ctx, bi), 0);
         for (int t = 0; t < N; t++) check_query(ctx, bi, &m, boxes[t], boxes[t], 1, &out, ref);
     }
     as_idlist_free(ctx, &out);
@@ -345,7 +345,7 @@ static void test_alloc_failure(void **state) {
                     assert_memory_equal(hi, m.box + 6 * id + 3, sizeof hi);
                 }
             }
-            assert_int_equal(as_boxindex_check(bi), 0);
+            assert_int_equal(as_boxindex_check(ctx, bi), 0);
             as_idlist out = {0};
             for (int q = 0; q < 200; q++) {
                 double lo[3], hi[3];

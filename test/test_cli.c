@@ -221,14 +221,14 @@ static void test_runtime_errors(void **state) {
          NULL},
         /* the surface leaks out of its bounding sphere (found computing the default e_n) */
         {"probe", "--implicit", "x^2+y^2+z^2-9", "--bound", "0,0,0,2", "--at", "1,0,0", NULL},
-        /* files: not supported yet */
+        /* a mesh file that does not exist */
         {"probe", "model.off", "--at", "0,0,0", NULL},
         /* sol metrics need a mesh surface */
         {"probe", "--builtin", "sphere", "--metric", "sol:m.sol", "--at", "1,0,0", NULL},
         /* coming commands */
         {"mesh", "--builtin", "sphere", "-o", "x.off", NULL},
     };
-    const char *msgs[] = {"no", "not finite", "bounding sphere", "not supported yet",
+    const char *msgs[] = {"no", "not finite", "bounding sphere", "cannot open 'model.off'",
                           "not supported yet", "not available yet"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {

@@ -224,6 +224,20 @@ static void compare_queries(anistar_context *ctx, const as_kdtree *kd, const dou
     assert_int_equal(out.n, 0);
     assert_int_equal(as_kdtree_radius(ctx, kd, q0, NAN, &out), ANISTAR_OK);
     assert_int_equal(out.n, 0);
+    /* non-finite query point, empty and NaN boxes: nothing */
+    double qn[3] = {0, NAN, 0};
+    assert_int_equal(as_kdtree_radius(ctx, kd, qn, 1e9, &out), ANISTAR_OK);
+    assert_int_equal(out.n, 0);
+    int32_t kid[4];
+    double kd2[4];
+    assert_int_equal(as_kdtree_knn(kd, qn, 4, kid, kd2), 0);
+    double blo[3] = {-1e9, -1e9, -1e9}, bhi[3] = {1e9, 1e9, 1e9};
+    bhi[2] = -2e9;
+    assert_int_equal(as_kdtree_box(ctx, kd, blo, bhi, &out), ANISTAR_OK);
+    assert_int_equal(out.n, 0);
+    bhi[2] = NAN;
+    assert_int_equal(as_kdtree_box(ctx, kd, blo, bhi, &out), ANISTAR_OK);
+    assert_int_equal(out.n, 0);
     as_idlist_free(ctx, &out);
 }
 
@@ -508,6 +522,22 @@ static void test_alloc_failure(void **state) {
         }
         assert_int_equal(ta.live_blocks, base_blocks);
         assert_int_equal(ta.live_bytes, base_bytes);
+    }
+
+    /* after as_kdtree_reserve, insertions allocate nothing (every allocation would fail) */
+    {
+        as_kdtree *kr = NULL;
+        assert_int_equal(as_kdtree_build(ctx, xyz, NULL, 100, &kr), ANISTAR_OK);
+        assert_int_equal(as_kdtree_reserve(ctx, kr, n - 100), ANISTAR_OK);
+        long failures_before = ta.failures;
+        ta.fail_after = ta.count;
+        for (size_t i = 100; i < n; i++)
+            assert_int_equal(as_kdtree_insert(ctx, kr, xyz + 3 * i, ids[i]), ANISTAR_OK);
+        ta.fail_after = -1;
+        assert_int_equal(ta.failures, failures_before);
+        assert_int_equal(as_kdtree_check(kr), 0);
+        compare_queries(ctx, kr, xyz, ids, n, &r, 3, &s);
+        as_kdtree_free(ctx, kr);
     }
 
     /* query output growth */

@@ -715,6 +715,13 @@ static void test_write_errors(void **state) {
         assert_int_equal(symlink("/dev/full", p), 0);
         assert_int_equal(as_mesh_write(t.ctx, p, &m, NULL, 0), ANISTAR_EIO);
         assert_non_null(strstr(anistar_last_error(t.ctx), strerror(ENOSPC)));
+        /* A failed write never removes what existed before it: the link stays and the
+         * device it names is still a device (as root, removing it would be a disaster). */
+        struct stat sb;
+        assert_int_equal(lstat(p, &sb), 0);
+        assert_true(S_ISLNK(sb.st_mode));
+        assert_int_equal(stat("/dev/full", &sb), 0);
+        assert_true(S_ISCHR(sb.st_mode));
     }
     assert_int_equal(as_mesh_write(t.ctx, tdir_file(&d, "x.xyz", buf), &m, NULL, 0),
                      ANISTAR_EFORMAT);
@@ -731,6 +738,8 @@ static void test_write_errors(void **state) {
     tdir_clean(&d);
     tctx_done(&t);
 }
+
+static long enomem_sweep(const char *path, int sol);
 
 /* ==================================================================================== */
 /* Format variants                                                                       */
@@ -1088,6 +1097,38 @@ static void test_stl_variants(void **state) {
     BAD(AS_FMT_STL, "hello", "not an STL file");
 }
 
+/* A soup of disjoint triangles (V = 3T, six times the weld table's first guess): the
+ * table grows and is rebuilt; the round trip is exact (float data) and numbers vertices
+ * in first-occurrence order; and every allocation failure on the way is clean. */
+static void test_stl_soup_rehash(void **state) {
+    (void)state;
+    tctx t;
+    tctx_init(&t);
+    tdir d;
+    tdir_make(&d);
+    char buf[256];
+    tu_rng r = {77};
+    as_trimesh m;
+    as_trimesh_init(&m);
+    for (int i = 0; i < 3000; i++)
+        assert_int_equal(as_trimesh_add_vertex(t.ctx, &m, (float)tu_rng_range(&r, -5, 5),
+                                               (float)tu_rng_range(&r, -5, 5), (float)i),
+                         ANISTAR_OK);
+    for (int i = 0; i < 1000; i++)
+        assert_int_equal(as_trimesh_add_triangle(t.ctx, &m, 3 * i, 3 * i + 1, 3 * i + 2), ANISTAR_OK);
+    const char *p = tdir_file(&d, "soup.stl", buf);
+    assert_int_equal(as_mesh_write(t.ctx, p, &m, NULL, 0), ANISTAR_OK);
+    as_trimesh b;
+    as_trimesh_init(&b);
+    assert_int_equal(as_mesh_read(t.ctx, p, &b), ANISTAR_OK);
+    assert_same_mesh(&m, &b);
+    as_trimesh_free(t.ctx, &b);
+    as_trimesh_free(t.ctx, &m);
+    tctx_done(&t);
+    assert_true(enomem_sweep(p, 0) >= 5);
+    tdir_clean(&d);
+}
+
 /* ---- Medit ---------------------------------------------------------------------------- */
 
 static void test_medit_variants(void **state) {
@@ -1239,24 +1280,24 @@ static void huge(as_mesh_format fmt, const void *text, size_t len, const char *w
     assert_true(t.a.peak_bytes < 65536);
     tctx_done(&t);
 }
-#define HUGE(fmt, text, what) huge(fmt, text, sizeof(text) - 1, what)
+#define HUGE_COUNT(fmt, text, what) huge(fmt, text, sizeof(text) - 1, what)
 
 static void test_huge_counts(void **state) {
     (void)state;
-    HUGE(AS_FMT_OFF, "OFF\n4000000000 1 0\n", "too many vertices");
-    HUGE(AS_FMT_OFF, "OFF\n2000000000 1 0\n0 0 0\n", "only 6 bytes follow");
-    HUGE(AS_FMT_OFF, "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "4000000000 faces");
-    HUGE(AS_FMT_OFF, "OFF\n3 99999999999999999999 0\n", "out of range");
-    HUGE(AS_FMT_PLY, "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
+    HUGE_COUNT(AS_FMT_OFF, "OFF\n4000000000 1 0\n", "too many vertices");
+    HUGE_COUNT(AS_FMT_OFF, "OFF\n2000000000 1 0\n0 0 0\n", "only 6 bytes follow");
+    HUGE_COUNT(AS_FMT_OFF, "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "4000000000 faces");
+    HUGE_COUNT(AS_FMT_OFF, "OFF\n3 99999999999999999999 0\n", "out of range");
+    HUGE_COUNT(AS_FMT_PLY, "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
                      "property float y\nproperty float z\nelement face 1\n"
                      "property list uchar int vertex_indices\nend_header\n0 0 0\n3 0 0 0\n",
          "count 4000000000 exceeds");
-    HUGE(AS_FMT_PLY, "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+    HUGE_COUNT(AS_FMT_PLY, "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
                      "property float y\nproperty float z\nelement face 1000000\n"
                      "property list uchar int vertex_indices\nend_header\n"
                      "012345678901234567890123456789012345",
          "count 1000000 exceeds");
-    HUGE(AS_FMT_PLY, "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+    HUGE_COUNT(AS_FMT_PLY, "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
                      "property float y\nproperty float z\nelement face 1\n"
                      "property list uchar int vertex_indices\nelement junk 4000000000\n"
                      "end_header\n", "has no properties");
@@ -1266,14 +1307,14 @@ static void test_huge_counts(void **state) {
         stl[80] = stl[81] = stl[82] = stl[83] = 0xff;
         huge(AS_FMT_STL, stl, sizeof stl, "truncated");
     }
-    HUGE(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nVertices\n4000000000\n0 0 0 0\n",
+    HUGE_COUNT(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nVertices\n4000000000\n0 0 0 0\n",
          "exceeds");
-    HUGE(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nVertices\n3\n0 0 0 0\n1 0 0 0\n"
+    HUGE_COUNT(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nVertices\n3\n0 0 0 0\n1 0 0 0\n"
                       "0 1 0 0\nTriangles 300000000\n1 2 3 0\n", "exceeds");
-    HUGE(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nTetrahedra 300000000\n", "exceeds");
-    HUGE(AS_FMT_SOL, "MeshVersionFormatted 2\nDimension 3\nSolAtVertices\n100000000\n1 3\n1 2 3\n",
+    HUGE_COUNT(AS_FMT_MESH, "MeshVersionFormatted 2\nDimension 3\nTetrahedra 300000000\n", "exceeds");
+    HUGE_COUNT(AS_FMT_SOL, "MeshVersionFormatted 2\nDimension 3\nSolAtVertices\n100000000\n1 3\n1 2 3\n",
          "exceeds");
-    HUGE(AS_FMT_OBJ, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4000000000\n", "out of range");
+    HUGE_COUNT(AS_FMT_OBJ, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4000000000\n", "out of range");
 }
 
 static void test_bad_values(void **state) {
@@ -1616,6 +1657,7 @@ int main(void) {
         cmocka_unit_test(test_obj_variants),
         cmocka_unit_test(test_ply_variants),
         cmocka_unit_test(test_stl_variants),
+        cmocka_unit_test(test_stl_soup_rehash),
         cmocka_unit_test(test_medit_variants),
         cmocka_unit_test(test_truncated),
         cmocka_unit_test(test_huge_counts),

@@ -239,7 +239,8 @@ static void gen_collinear(tu_rng *r, double (*p)[3], int n) {
             memcpy(p[i], p[tu_rng_u64(r) % (unsigned)i], sizeof p[i]);
         } else if (kind == 1) {
             double u = tu_rng_range(r, -2, 2);
-            for (int k = 0; k < 3; k++) p[i][k] = in_range(p[0][k] + u * (p[1][k] - p[0][k]));
+            for (int k = 0; k < 3; k++)
+                p[i][k] = in_range(p[0][k] + u * (p[1][k] - p[0][k]));
         }
     }
     nudge_some(r, p, n);
@@ -305,15 +306,17 @@ static void gen_degenerate(tu_rng *r, const sphere_pts *sp, int nsp, double (*p)
             for (int k = 0; k < 3; k++) p[i][k] = (c >> k) & 1u ? hi[k] : lo[k];
         }
     } else {
-        static const int sym[15][3] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},   {0, -1, 0},
-                                       {0, 0, 1},  {0, 0, -1}, {1, 1, 1},   {1, 1, -1},
-                                       {1, -1, 1}, {1, -1, -1}, {-1, 1, 1}, {-1, 1, -1},
+        static const int sym[15][3] = {{1, 0, 0},   {-1, 0, 0},   {0, 1, 0},  {0, -1, 0},
+                                       {0, 0, 1},   {0, 0, -1},   {1, 1, 1},  {1, 1, -1},
+                                       {1, -1, 1},  {1, -1, -1},  {-1, 1, 1}, {-1, 1, -1},
                                        {-1, -1, 1}, {-1, -1, -1}, {0, 0, 0}};
         int base = (int)(tu_rng_u64(r) % 2);
         for (int i = 0; i < n; i++) {
-            unsigned j = base ? 6 + (unsigned)(tu_rng_u64(r) % 9) : (unsigned)(tu_rng_u64(r) % 6);
+            unsigned j =
+                base ? 6 + (unsigned)(tu_rng_u64(r) % 9) : (unsigned)(tu_rng_u64(r) % 6);
             if (tu_rng_u64(r) % 8 == 0) j = 14;
-            for (int k = 0; k < 3; k++) p[i][k] = in_range(s * (double)(sym[j][k] + ioff[k]));
+            for (int k = 0; k < 3; k++)
+                p[i][k] = in_range(s * (double)(sym[j][k] + ioff[k]));
         }
     }
 }
@@ -353,9 +356,12 @@ typedef struct tally {
 
 static void tally_add(tally *t, int s) {
     t->cases++;
-    if (s == 0) t->zero++;
-    else if (s > 0) t->pos++;
-    else t->neg++;
+    if (s == 0)
+        t->zero++;
+    else if (s > 0)
+        t->pos++;
+    else
+        t->neg++;
 }
 
 /* Check the adaptive and exact orient3d of one case against the oracle. */
@@ -444,7 +450,8 @@ static void test_expansion_ops(void **state) {
     mpq_init(t);
     for (long it = 0; it < 20000; it++) {
         double a = rand_double(&r, -300, 300), b = rand_double(&r, -300, 300);
-        if (it % 3 == 0) b = rand_double(&r, -30, 30) * ldexp(a, -(int)(tu_rng_u64(&r) % 60));
+        if (it % 3 == 0)
+            b = rand_double(&r, -30, 30) * ldexp(a, -(int)(tu_rng_u64(&r) % 60));
         double x, y;
         double h[2];
         /* two_sum, two_diff, fast_two_sum */
@@ -578,8 +585,8 @@ static void test_conventions(void **state) {
     double in[3] = {0.25, 0.25, -0.25}, out[3] = {3, 3, 3}, on[3] = {1, 1, -1};
     assert_true(as_insphere(a, b, c, d, in) > 0);
     assert_true(as_insphere(a, b, c, d, out) < 0);
-    assert_true(as_insphere(a, b, c, d, on) == 0);           /* box corner: cospherical */
-    assert_true(as_insphere(b, a, c, d, in) < 0);            /* negative orientation */
+    assert_true(as_insphere(a, b, c, d, on) == 0); /* box corner: cospherical */
+    assert_true(as_insphere(b, a, c, d, in) < 0);  /* negative orientation */
     assert_true(as_insphere_exact(a, b, c, d, in) > 0);
     assert_true(as_insphere_exact(a, b, c, d, on) == 0);
     assert_true(as_orient3d_exact(a, b, c, d) == 1.0);
@@ -640,7 +647,8 @@ static void test_insphere_random(void **state) {
         int want = check_insphere(&o, (const double(*)[3])p, it, "random");
         tally_add(&t, want);
         if (it % 64 == 0 && want != 0) {
-            double v = as_insphere_exact(p[0], p[1], p[2], p[3], p[4]), x = oracle_value(&o, 5);
+            double v = as_insphere_exact(p[0], p[1], p[2], p[3], p[4]),
+                   x = oracle_value(&o, 5);
             double rel = fabs(v - x) / fabs(x);
             if (rel > worst) worst = rel;
         }
@@ -723,8 +731,8 @@ static void test_range_extremes(void **state) {
     oracle_init(&o);
     tu_rng r = {606};
     double p[5][3];
-    static const double mags[] = {1e-40, 1.0000000000000002e-40, 1e40, 9.999999999999999e39,
-                                  0x1p-132, 0x1p132};
+    static const double mags[] = {
+        1e-40, 1.0000000000000002e-40, 1e40, 9.999999999999999e39, 0x1p-132, 0x1p132};
     for (long it = 0; it < 100000; it++) {
         double m = mags[tu_rng_u64(&r) % 6];
         for (int i = 0; i < 5; i++)
@@ -732,7 +740,8 @@ static void test_range_extremes(void **state) {
                 unsigned c = (unsigned)(tu_rng_u64(&r) % 8);
                 double v = c < 2 ? 0.0 : (c < 5 ? m : -m);
                 if (c == 7) v = nudge(m, (int)(tu_rng_u64(&r) % 5) - 2);
-                if (c == 6) v = nudge(m > 1 ? 0.5 * m : 2 * m, (int)(tu_rng_u64(&r) % 5) - 2);
+                if (c == 6)
+                    v = nudge(m > 1 ? 0.5 * m : 2 * m, (int)(tu_rng_u64(&r) % 5) - 2);
                 p[i][k] = v;
             }
         check_orient(&o, (const double(*)[3])p, it, "range extremes");
@@ -790,8 +799,8 @@ static void sos_oracle_clear(sos_oracle *so) {
 
 /* det of the submatrix of so->a on rows[0..n-1] x cols[0..n-1], by Laplace along the
  * first row (recursive: test code, n <= 5). Result in out. */
-static void mpz_det_sub(sos_oracle *so, mpz_ptr out, const int *rows, const int *cols, int n,
-                        int depth) {
+static void mpz_det_sub(sos_oracle *so, mpz_ptr out, const int *rows, const int *cols,
+                        int n, int depth) {
     if (n == 1) {
         mpz_set(out, so->a[rows[0]][cols[0]]);
         return;
@@ -811,7 +820,8 @@ static void mpz_det_sub(sos_oracle *so, mpz_ptr out, const int *rows, const int 
     mpz_set(out, acc);
 }
 
-static int sos_oracle_sign(sos_oracle *so, oracle *o, const double (*p)[3], const int64_t *ids) {
+static int sos_oracle_sign(sos_oracle *so, oracle *o, const double (*p)[3],
+                           const int64_t *ids) {
     const double *pp[5] = {p[0], p[1], p[2], p[3], p[4]};
     oracle_load(o, pp, 5);
     /* rows (X, Y, Z, X^2 + Y^2 + Z^2, 1) with X = x 2^-emin: the columns of A scaled by
@@ -936,7 +946,8 @@ static void test_sos_properties(void **state) {
         /* equal to the independent evaluation of the scheme */
         if (exact == 0 || it % 8 == 0) {
             int want = sos_oracle_sign(&so, &o, (const double(*)[3])p, id);
-            if (s != want) fail_msg("case %ld: sos %d, oracle of the scheme %d", it, s, want);
+            if (s != want)
+                fail_msg("case %ld: sos %d, oracle of the scheme %d", it, s, want);
         }
         /* permutations of the five points together with their ids: the sign follows the
          * permutation's sign (odd swaps of the first four flip it, even ones keep it) */
@@ -955,8 +966,8 @@ static void test_sos_properties(void **state) {
             }
             int s2 = sos((const double(*)[3])q, qid);
             if (s2 != s * perm_sign(pi, 5))
-                fail_msg("case %ld: permutation %d%d%d%d%d gives %d, expected %d", it, pi[0],
-                         pi[1], pi[2], pi[3], pi[4], s2, s * perm_sign(pi, 5));
+                fail_msg("case %ld: permutation %d%d%d%d%d gives %d, expected %d", it,
+                         pi[0], pi[1], pi[2], pi[3], pi[4], s2, s * perm_sign(pi, 5));
         }
     }
     /* the degenerate generators hit both phases of the perturbation */

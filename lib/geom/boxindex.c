@@ -1,5 +1,5 @@
 /*
- * boxindex.c — dynamic boxes in a balanced AABB tree with fattened leaves (see
+ * boxindex.c — dynamic boxes in a hierarchical hash grid with contiguous cells (see
  * boxindex.h).
  */
 #include "geom/boxindex.h"
@@ -7,247 +7,269 @@
 #include <math.h>
 #include <string.h>
 
-/* A leaf's box is the true box grown by AS_BI_FAT times its largest extent on each side,
- * so that small moves and shrinks need no tree update. */
-#define AS_BI_FAT 0.125
-/* An update keeps the leaf when the new box fits in the fat box and the fat box is not
- * more than AS_BI_LOOSE times as large (largest extent) as the new box's own fat box. */
-#define AS_BI_LOOSE 2.0
-/* Coordinates beyond this magnitude are rejected (keeps extents and margins finite). */
-#define AS_BI_MAX_COORD 1e300
-/* Depth-first stacks; a tree taller than this (never seen: the balancing keeps the height
- * logarithmic) is queried by a plain scan of the boxes instead. */
-#define AS_BI_STACK 192
-#define AS_BI_NIL (-1)
+#define AS_BX_NONE UINT32_MAX
+/* A box at level L has extent below 2^(L + AS_BX_SPAN_LOG2): its lower corner lies within
+ * AS_BX_SPAN = 2^AS_BX_SPAN_LOG2 cells of any point it contains. boxindex.h describes the
+ * value 0 (8 probes per level); 1 (27 probes, half the candidates) measured no faster. */
+#define AS_BX_SPAN_LOG2 0
+#define AS_BX_SPAN (1 << AS_BX_SPAN_LOG2)
+/* Stored coordinates are below 2^(L + AS_BX_CELL_BITS) at level L, so cell indices stay
+ * below 2^50 in magnitude. */
+#define AS_BX_CELL_BITS 50
+/* Levels: from the coordinate rule at the smallest subnormal (ilogb -1074 + 1 - 50) up to
+ * boxes of extent 2^1000 (coordinates are limited to AS_BX_MAX_COORD). */
+#define AS_BX_LMIN (-1123)
+#define AS_BX_LMAX 1001
+#define AS_BX_NLEVELS (AS_BX_LMAX - AS_BX_LMIN + 1)
+/* Coordinates beyond this magnitude are rejected (keeps extents and levels finite). */
+#define AS_BX_MAX_COORD 1e300
+/* Cell indices of query coordinates saturate here (beyond every stored cell). */
+#define AS_BX_SAT ((int64_t)1 << 62)
+#define AS_BX_EMPTY INT32_MIN /* free hash entry */
+#define AS_BX_NOBOX INT32_MIN /* record of an id without a box */
+/* Cell blocks hold 2^cls entries, cls in [AS_BX_MIN_CLASS, AS_BX_CLASSES). */
+#define AS_BX_MIN_CLASS 2
+#define AS_BX_CLASSES 31
 
-typedef struct as_bi_node {
-    double lo[3], hi[3]; /* leaf: fat box; internal: exact union of the children's boxes */
-    int32_t parent;      /* AS_BI_NIL at the root */
-    int32_t child[2];    /* AS_BI_NIL for a leaf */
-    int32_t height;      /* 0 for a leaf, -1 for a free node */
-    int32_t id;          /* leaf: its id; free node: next free node */
+/* A stored box (in its cell's block). */
+typedef struct as_bx_ent {
+    double lo[3], hi[3];
+    int32_t id; /* in a free block's first entry: the next free block's offset, or -1 */
     int32_t pad;
-} as_bi_node;
+} as_bx_ent;
 
-typedef struct as_bi_entry {
-    double box[6]; /* the true box: lo, hi */
-    int32_t leaf;  /* its leaf node, or AS_BI_NIL when the id has no box */
-    int32_t pad;
-} as_bi_entry;
+/* A hash table entry: the cell (level, c) and its block of entries. */
+typedef struct as_bx_cell {
+    int64_t c[3];
+    int32_t level; /* AS_BX_EMPTY: free table entry */
+    uint32_t off;  /* first entry of the block in the pool */
+    uint32_t count;
+    uint32_t cls; /* the block holds 2^cls entries */
+} as_bx_cell;
+
+/* Per id: where its box is. */
+typedef struct as_bx_rec {
+    int64_t cell[3];
+    int32_t level; /* AS_BX_NOBOX when the id has no box */
+    uint32_t pos;  /* its entry in the pool */
+} as_bx_rec;
 
 struct as_boxindex {
-    as_bi_node *node;
-    size_t ncap, nused; /* capacity; nodes ever handed out (free ones are on the list) */
-    int32_t free_head;
-    int32_t root;
-    as_bi_entry *ent; /* indexed by id */
-    size_t idcap;
-    size_t n; /* boxes stored */
+    as_bx_rec *rec; /* indexed by id */
+    size_t idcap, n;
+    as_bx_ent *pool; /* cell blocks */
+    size_t pool_n, pool_cap;
+    int32_t free_block[AS_BX_CLASSES]; /* free blocks per class, linked through .id */
+    as_bx_cell *tab;                   /* open addressing, power-of-two capacity, load <= 1/2 */
+    size_t tcap, tn;
+    int32_t lvl_count[AS_BX_NLEVELS]; /* boxes per level */
+    int16_t active[AS_BX_NLEVELS];    /* levels holding boxes, ascending */
+    size_t nactive;
 };
 
-/* ---- box helpers ------------------------------------------------------------------------- */
+/* ---- levels and cells -------------------------------------------------------------------- */
 
-static inline void as_bi_union(const double *alo, const double *ahi, const double *blo,
-                               const double *bhi, double *lo, double *hi) {
+/* The level of a box: the smallest L with (largest computed extent) < 2^L — which implies
+ * the exact extent is below 2^L too, as rounding is monotone and 2^L representable —
+ * raised to keep the coordinates below 2^(L + AS_BX_CELL_BITS). */
+static int as_bx_level(const double lo[3], const double hi[3]) {
+    double e = 0, m = 0;
     for (int k = 0; k < 3; k++) {
-        lo[k] = alo[k] < blo[k] ? alo[k] : blo[k];
-        hi[k] = ahi[k] > bhi[k] ? ahi[k] : bhi[k];
+        double d = hi[k] - lo[k], a = fabs(lo[k]), b = fabs(hi[k]);
+        if (d > e) e = d;
+        if (a > m) m = a;
+        if (b > m) m = b;
+    }
+    int L = AS_BX_LMIN;
+    if (e > 0 && ilogb(e) + 1 - AS_BX_SPAN_LOG2 > L) L = ilogb(e) + 1 - AS_BX_SPAN_LOG2;
+    if (m > 0 && ilogb(m) + 1 - AS_BX_CELL_BITS > L) L = ilogb(m) + 1 - AS_BX_CELL_BITS;
+    return L;
+}
+
+/* floor(x / 2^L), exactly, saturated at +-AS_BX_SAT. Scaling by a power of two is exact
+ * whenever the result is at least 1 in magnitude (no underflow) and not saturated;
+ * below 1 in magnitude the floor is 0 or -1 by the sign of x. */
+static inline int64_t as_bx_cell_of(double x, int L) {
+    double s = ldexp(x, -L);
+    if (s >= (double)AS_BX_SAT) return AS_BX_SAT;
+    if (s <= -(double)AS_BX_SAT) return -AS_BX_SAT;
+    if (s >= 1 || s <= -1) return (int64_t)floor(s);
+    return x < 0 ? -1 : 0;
+}
+
+static inline uint64_t as_bx_hash(const int64_t c[3], int32_t L) {
+    uint64_t h = (uint64_t)c[0] * 0x9E3779B97F4A7C15ULL;
+    h = (h ^ (h >> 31)) + (uint64_t)c[1] * 0xC2B2AE3D27D4EB4FULL;
+    h = (h ^ (h >> 29)) + (uint64_t)c[2] * 0x165667B19E3779F9ULL;
+    h = (h ^ (h >> 32)) + (uint64_t)(uint32_t)L * 0x27D4EB2F165667C5ULL;
+    h ^= h >> 29;
+    h *= 0xBF58476D1CE4E5B9ULL;
+    h ^= h >> 32;
+    return h;
+}
+
+/* Position of the cell (L, c) in the table, or SIZE_MAX. */
+static size_t as_bx_find(const as_boxindex *bi, const int64_t c[3], int32_t L) {
+    if (bi->tn == 0) return SIZE_MAX;
+    size_t mask = bi->tcap - 1, i = (size_t)as_bx_hash(c, L) & mask;
+    for (;;) {
+        const as_bx_cell *e = &bi->tab[i];
+        if (e->level == AS_BX_EMPTY) return SIZE_MAX;
+        if (e->level == L && e->c[0] == c[0] && e->c[1] == c[1] && e->c[2] == c[2]) return i;
+        i = (i + 1) & mask;
     }
 }
 
-/* Half the surface area, the insertion cost of a box (SAH). */
-static inline double as_bi_area(const double *lo, const double *hi) {
-    double x = hi[0] - lo[0], y = hi[1] - lo[1], z = hi[2] - lo[2];
-    return x * y + y * z + z * x;
-}
-
-static inline double as_bi_union_area(const as_bi_node *a, const double *lo, const double *hi) {
-    double ulo[3], uhi[3];
-    as_bi_union(a->lo, a->hi, lo, hi, ulo, uhi);
-    return as_bi_area(ulo, uhi);
-}
-
-static inline double as_bi_max_extent(const double *lo, const double *hi) {
-    double e = 0;
-    for (int k = 0; k < 3; k++)
-        if (hi[k] - lo[k] > e) e = hi[k] - lo[k];
-    return e;
-}
-
-/* The fat box of [lo, hi]; it contains [lo, hi] also in floating point (a margin m >= 0
- * subtracted from lo cannot round above lo). */
-static void as_bi_fatten(const double *lo, const double *hi, double *flo, double *fhi) {
-    double m = AS_BI_FAT * as_bi_max_extent(lo, hi);
-    for (int k = 0; k < 3; k++) {
-        flo[k] = lo[k] - m;
-        fhi[k] = hi[k] + m;
-    }
-}
-
-static inline int as_bi_within(const double *alo, const double *ahi, const double *blo,
-                               const double *bhi) {
-    for (int k = 0; k < 3; k++)
-        if (alo[k] < blo[k] || ahi[k] > bhi[k]) return 0;
-    return 1;
-}
-
-static inline int as_bi_meets(const double *alo, const double *ahi, const double *blo,
-                              const double *bhi) {
-    for (int k = 0; k < 3; k++)
-        if (ahi[k] < blo[k] || alo[k] > bhi[k]) return 0;
-    return 1;
-}
-
-/* ---- node pool ----------------------------------------------------------------------------- */
-
-/* Make sure `more` nodes can be taken without allocating. */
-static int as_bi_reserve_nodes(anistar_context *ctx, as_boxindex *bi, size_t more) {
-    size_t nfree = 0;
-    for (int32_t f = bi->free_head; f != AS_BI_NIL && nfree < more; f = bi->node[f].id) nfree++;
-    if (nfree >= more) return 0;
-    size_t need = bi->nused + (more - nfree);
-    if (need > (size_t)INT32_MAX) return -1;
-    void *p = bi->node;
-    if (as_grow(ctx, &p, &bi->ncap, need, sizeof *bi->node)) return -1;
-    bi->node = p;
-    return 0;
-}
-
-static int32_t as_bi_take(as_boxindex *bi) {
-    int32_t i;
-    if (bi->free_head != AS_BI_NIL) {
-        i = bi->free_head;
-        bi->free_head = bi->node[i].id;
-    } else {
-        i = (int32_t)bi->nused++;
-    }
-    as_bi_node *nd = &bi->node[i];
-    nd->parent = nd->child[0] = nd->child[1] = AS_BI_NIL;
-    nd->height = 0;
-    nd->id = AS_BI_NIL;
-    nd->pad = 0;
+/* Insert a table entry (capacity guaranteed, key absent); returns its position. */
+static size_t as_bx_cell_put(as_boxindex *bi, const as_bx_cell *cell) {
+    size_t mask = bi->tcap - 1, i = (size_t)as_bx_hash(cell->c, cell->level) & mask;
+    while (bi->tab[i].level != AS_BX_EMPTY) i = (i + 1) & mask;
+    bi->tab[i] = *cell;
+    bi->tn++;
     return i;
 }
 
-static void as_bi_give(as_boxindex *bi, int32_t i) {
-    bi->node[i].height = -1;
-    bi->node[i].id = bi->free_head;
-    bi->free_head = i;
-}
-
-/* ---- balancing ----------------------------------------------------------------------------- */
-
-static void as_bi_refit(as_boxindex *bi, int32_t i) {
-    as_bi_node *nd = &bi->node[i];
-    const as_bi_node *a = &bi->node[nd->child[0]], *b = &bi->node[nd->child[1]];
-    as_bi_union(a->lo, a->hi, b->lo, b->hi, nd->lo, nd->hi);
-    nd->height = 1 + (a->height > b->height ? a->height : b->height);
-}
-
-static void as_bi_replace_child(as_boxindex *bi, int32_t parent, int32_t old, int32_t neu) {
-    if (parent == AS_BI_NIL) {
-        bi->root = neu;
-        return;
+/* Delete the table entry at position i (backward-shift deletion keeps every probe chain
+ * unbroken without tombstones; entries move, so positions are never kept across calls). */
+static void as_bx_cell_del(as_boxindex *bi, size_t i) {
+    size_t mask = bi->tcap - 1, j = i;
+    for (;;) {
+        j = (j + 1) & mask;
+        as_bx_cell *e = &bi->tab[j];
+        if (e->level == AS_BX_EMPTY) break;
+        size_t k = (size_t)as_bx_hash(e->c, e->level) & mask;
+        /* e may stay if its home k lies cyclically in (i, j] */
+        int stays = i <= j ? (i < k && k <= j) : (i < k || k <= j);
+        if (stays) continue;
+        bi->tab[i] = *e;
+        i = j;
     }
-    as_bi_node *p = &bi->node[parent];
-    p->child[p->child[0] == old ? 0 : 1] = neu;
+    bi->tab[i].level = AS_BX_EMPTY;
+    bi->tn--;
 }
 
-/*
- * as_bi_balance — if the subtree at a is unbalanced (child heights differ by more than 1),
- * rotate its taller child c up: c takes a's place, a keeps its shorter child and the
- * shorter of c's children, c keeps its taller child and gets a. Returns the subtree's new
- * root. (The AVL-style rotation used by Box2D's dynamic tree.)
- */
-static int32_t as_bi_balance(as_boxindex *bi, int32_t a) {
-    as_bi_node *A = &bi->node[a];
-    if (A->child[0] == AS_BI_NIL || A->height < 2) return a;
-    int32_t b0 = A->child[0], b1 = A->child[1];
-    int diff = bi->node[b1].height - bi->node[b0].height;
-    if (diff >= -1 && diff <= 1) return a;
-    int up = diff > 1 ? 1 : 0; /* the taller side */
-    int32_t c = A->child[up];
-    as_bi_node *C = &bi->node[c];
-    int32_t f = C->child[0], g = C->child[1];
-    int32_t tall = bi->node[f].height > bi->node[g].height ? f : g;
-    int32_t shortc = tall == f ? g : f;
-    /* c replaces a under a's parent */
-    C->parent = A->parent;
-    as_bi_replace_child(bi, A->parent, a, c);
-    /* a becomes a child of c, with its own other child and c's shorter child */
-    C->child[0] = a;
-    C->child[1] = tall;
-    A->parent = c;
-    A->child[up] = shortc;
-    bi->node[shortc].parent = a;
-    as_bi_refit(bi, a);
-    as_bi_refit(bi, c);
-    return c;
+/* Make room for one more cell (load factor <= 1/2). */
+static int as_bx_reserve_cell(anistar_context *ctx, as_boxindex *bi) {
+    if (2 * (bi->tn + 1) <= bi->tcap) return 0;
+    size_t ncap = bi->tcap ? 2 * bi->tcap : 64;
+    as_bx_cell *nt = as_alloc_array(ctx, ncap, sizeof *nt);
+    if (!nt) return -1;
+    for (size_t i = 0; i < ncap; i++) nt[i].level = AS_BX_EMPTY;
+    as_bx_cell *old = bi->tab;
+    size_t ocap = bi->tcap;
+    bi->tab = nt;
+    bi->tcap = ncap;
+    bi->tn = 0;
+    for (size_t i = 0; i < ocap; i++)
+        if (old[i].level != AS_BX_EMPTY) as_bx_cell_put(bi, &old[i]);
+    as_free(ctx, old, ocap * sizeof *old);
+    return 0;
 }
 
-/* Refit and rebalance every ancestor from i up to the root. */
-static void as_bi_fix_upwards(as_boxindex *bi, int32_t i) {
-    while (i != AS_BI_NIL) {
-        i = as_bi_balance(bi, i);
-        as_bi_refit(bi, i);
-        i = bi->node[i].parent;
-    }
+/* ---- block pool -------------------------------------------------------------------------- */
+
+/* Make sure a block of class k can be taken without allocating. */
+static int as_bx_reserve_block(anistar_context *ctx, as_boxindex *bi, uint32_t k) {
+    if (k >= AS_BX_CLASSES) return -1;
+    if (bi->free_block[k] >= 0) return 0;
+    size_t need = bi->pool_n + ((size_t)1 << k);
+    if (need > (size_t)INT32_MAX) return -1;
+    void *p = bi->pool;
+    if (as_grow(ctx, &p, &bi->pool_cap, need, sizeof *bi->pool)) return -1;
+    bi->pool = p;
+    return 0;
 }
 
-/*
- * as_bi_insert_leaf — hang leaf l (its fat box set) into the tree.
- * design (SAH descent, as Box2D's dynamic tree):
- *   1. From the root, compare the cost of pairing l with the current node (twice the
- *      area of their union) with the cost of descending into each child (the child's area
- *      increase, plus what every ancestor on the way pays: twice its area increase);
- *      stop when pairing here is cheapest.
- *   2. A new internal node takes the sibling's place, with the sibling and l as children.
- *   3. Refit and rebalance up to the root.
- */
-static void as_bi_insert_leaf(as_boxindex *bi, int32_t l) {
-    if (bi->root == AS_BI_NIL) {
-        bi->root = l;
-        bi->node[l].parent = AS_BI_NIL;
-        return;
+static uint32_t as_bx_block_take(as_boxindex *bi, uint32_t k) {
+    int32_t off = bi->free_block[k];
+    if (off >= 0) {
+        bi->free_block[k] = bi->pool[off].id;
+        return (uint32_t)off;
     }
-    const double *llo = bi->node[l].lo, *lhi = bi->node[l].hi;
-    int32_t s = bi->root;
-    while (bi->node[s].child[0] != AS_BI_NIL) {
-        const as_bi_node *nd = &bi->node[s];
-        double area = as_bi_area(nd->lo, nd->hi), comb = as_bi_union_area(nd, llo, lhi);
-        double cost = 2 * comb, inherit = 2 * (comb - area), cc[2];
-        for (int m = 0; m < 2; m++) {
-            const as_bi_node *c = &bi->node[nd->child[m]];
-            double u = as_bi_union_area(c, llo, lhi);
-            cc[m] = (c->child[0] == AS_BI_NIL ? u : u - as_bi_area(c->lo, c->hi)) + inherit;
-        }
-        if (cost < cc[0] && cost < cc[1]) break;
-        s = nd->child[cc[1] < cc[0] ? 1 : 0];
-    }
-    int32_t p = as_bi_take(bi);
-    as_bi_node *P = &bi->node[p], *S = &bi->node[s];
-    P->parent = S->parent;
-    as_bi_replace_child(bi, S->parent, s, p);
-    P->child[0] = s;
-    P->child[1] = l;
-    S->parent = p;
-    bi->node[l].parent = p;
-    as_bi_fix_upwards(bi, p);
+    uint32_t o = (uint32_t)bi->pool_n;
+    bi->pool_n += (size_t)1 << k;
+    return o;
 }
 
-/* Unhang leaf l (kept as a node); its parent is freed and the sibling takes its place. */
-static void as_bi_remove_leaf(as_boxindex *bi, int32_t l) {
-    if (bi->root == l) {
-        bi->root = AS_BI_NIL;
-        return;
+static void as_bx_block_give(as_boxindex *bi, uint32_t off, uint32_t k) {
+    bi->pool[off].id = bi->free_block[k];
+    bi->free_block[k] = (int32_t)off;
+}
+
+/* ---- levels -------------------------------------------------------------------------------- */
+
+static void as_bx_level_inc(as_boxindex *bi, int L) {
+    if (bi->lvl_count[L - AS_BX_LMIN]++ > 0) return;
+    size_t i = bi->nactive;
+    while (i > 0 && bi->active[i - 1] > L) {
+        bi->active[i] = bi->active[i - 1];
+        i--;
     }
-    int32_t p = bi->node[l].parent, g = bi->node[p].parent;
-    int32_t s = bi->node[p].child[bi->node[p].child[0] == l ? 1 : 0];
-    bi->node[s].parent = g;
-    as_bi_replace_child(bi, g, p, s);
-    as_bi_give(bi, p);
-    bi->node[l].parent = AS_BI_NIL;
-    as_bi_fix_upwards(bi, g);
+    bi->active[i] = (int16_t)L;
+    bi->nactive++;
+}
+
+static void as_bx_level_dec(as_boxindex *bi, int L) {
+    if (--bi->lvl_count[L - AS_BX_LMIN] > 0) return;
+    size_t i = 0;
+    while (bi->active[i] != L) i++;
+    memmove(bi->active + i, bi->active + i + 1, (bi->nactive - i - 1) * sizeof *bi->active);
+    bi->nactive--;
+}
+
+/* ---- entries in cells ---------------------------------------------------------------------- */
+
+/* Append the entry of id (box lo, hi; record already holding level and cell) to its cell,
+ * creating the cell or moving it to a block twice as large when full. Capacity (table and
+ * pool) must have been reserved. */
+static void as_bx_attach(as_boxindex *bi, int32_t id, const double lo[3], const double hi[3]) {
+    as_bx_rec *r = &bi->rec[id];
+    size_t t = as_bx_find(bi, r->cell, r->level);
+    if (t == SIZE_MAX) {
+        as_bx_cell cell;
+        memcpy(cell.c, r->cell, sizeof cell.c);
+        cell.level = r->level;
+        cell.cls = AS_BX_MIN_CLASS;
+        cell.off = as_bx_block_take(bi, AS_BX_MIN_CLASS);
+        cell.count = 0;
+        t = as_bx_cell_put(bi, &cell);
+    }
+    as_bx_cell *C = &bi->tab[t];
+    if (C->count == (uint32_t)1 << C->cls) {
+        uint32_t noff = as_bx_block_take(bi, C->cls + 1);
+        memcpy(bi->pool + noff, bi->pool + C->off, C->count * sizeof *bi->pool);
+        for (uint32_t i = 0; i < C->count; i++) bi->rec[bi->pool[noff + i].id].pos = noff + i;
+        as_bx_block_give(bi, C->off, C->cls);
+        C->off = noff;
+        C->cls++;
+    }
+    uint32_t pos = C->off + C->count++;
+    as_bx_ent *e = &bi->pool[pos];
+    memcpy(e->lo, lo, sizeof e->lo);
+    memcpy(e->hi, hi, sizeof e->hi);
+    e->id = id;
+    e->pad = 0;
+    r->pos = pos;
+    as_bx_level_inc(bi, r->level);
+}
+
+/* Take id's entry out of its cell (the cell's last entry fills the hole; an emptied cell
+ * returns its block and leaves the table). */
+static void as_bx_detach(as_boxindex *bi, int32_t id) {
+    as_bx_rec *r = &bi->rec[id];
+    size_t t = as_bx_find(bi, r->cell, r->level);
+    as_bx_cell *C = &bi->tab[t];
+    uint32_t last = C->off + C->count - 1;
+    if (r->pos != last) {
+        bi->pool[r->pos] = bi->pool[last];
+        bi->rec[bi->pool[r->pos].id].pos = r->pos;
+    }
+    C->count--;
+    if (C->count == 0) {
+        as_bx_block_give(bi, C->off, C->cls);
+        as_bx_cell_del(bi, t);
+    }
+    as_bx_level_dec(bi, r->level);
 }
 
 /* ---- life cycle and updates --------------------------------------------------------------- */
@@ -257,33 +279,22 @@ anistar_status as_boxindex_new(anistar_context *ctx, as_boxindex **out) {
     as_boxindex *bi = as_alloc(ctx, sizeof *bi);
     if (!bi) return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory");
     memset(bi, 0, sizeof *bi);
-    bi->free_head = AS_BI_NIL;
-    bi->root = AS_BI_NIL;
+    for (int k = 0; k < AS_BX_CLASSES; k++) bi->free_block[k] = -1;
     *out = bi;
     return ANISTAR_OK;
 }
 
 void as_boxindex_free(anistar_context *ctx, as_boxindex *bi) {
     if (!bi) return;
-    as_free(ctx, bi->node, bi->ncap * sizeof *bi->node);
-    as_free(ctx, bi->ent, bi->idcap * sizeof *bi->ent);
+    as_free(ctx, bi->rec, bi->idcap * sizeof *bi->rec);
+    as_free(ctx, bi->pool, bi->pool_cap * sizeof *bi->pool);
+    as_free(ctx, bi->tab, bi->tcap * sizeof *bi->tab);
     as_free(ctx, bi, sizeof *bi);
 }
 
-/* Grow the id array to hold id (new entries empty). */
-static int as_bi_reserve_id(anistar_context *ctx, as_boxindex *bi, int32_t id) {
-    if ((size_t)id < bi->idcap) return 0;
-    size_t old = bi->idcap;
-    void *p = bi->ent;
-    if (as_grow(ctx, &p, &bi->idcap, (size_t)id + 1, sizeof *bi->ent)) return -1;
-    bi->ent = p;
-    for (size_t i = old; i < bi->idcap; i++) bi->ent[i].leaf = AS_BI_NIL;
-    return 0;
-}
-
-static int as_bi_valid_box(const double lo[3], const double hi[3]) {
+static int as_bx_valid_box(const double lo[3], const double hi[3]) {
     for (int k = 0; k < 3; k++)
-        if (!(fabs(lo[k]) <= AS_BI_MAX_COORD) || !(fabs(hi[k]) <= AS_BI_MAX_COORD) ||
+        if (!(fabs(lo[k]) <= AS_BX_MAX_COORD) || !(fabs(hi[k]) <= AS_BX_MAX_COORD) ||
             !(lo[k] <= hi[k]))
             return 0;
     return 1;
@@ -292,64 +303,75 @@ static int as_bi_valid_box(const double lo[3], const double hi[3]) {
 /*
  * as_boxindex_set — see boxindex.h.
  * design:
- *   1. Existing id whose new box fits in its leaf's fat box, that fat box not more than
- *      AS_BI_LOOSE times too large: store the new true box only, O(1).
- *   2. Otherwise reserve what may be needed (id arrays, two nodes) before changing
- *      anything; unhang the old leaf if any; set the fat box; insert the leaf (SAH
- *      descent, rebalancing up to the root), O(log n).
+ *   1. Level L and lower-corner cell of the new box.
+ *   2. Existing id with the same level and cell: rewrite its entry, done.
+ *   3. Reserve everything that may be needed (id records, one table entry, one block:
+ *      the target cell's next size, or a first block) before changing anything, so a
+ *      failure leaves the index as it was.
+ *   4. Detach the old entry (existing id); attach the new one to its cell.
  */
 anistar_status as_boxindex_set(anistar_context *ctx, as_boxindex *bi, int32_t id,
                                const double lo[3], const double hi[3]) {
     if (id < 0 || id == INT32_MAX)
         return as_fail(ctx, ANISTAR_EINVAL, "boxindex: invalid id %ld", (long)id);
-    if (!as_bi_valid_box(lo, hi))
+    if (!as_bx_valid_box(lo, hi))
         return as_fail(ctx, ANISTAR_EINVAL,
                        "boxindex: box of id %ld is not a box with coordinates within 1e300",
                        (long)id);
-    double flo[3], fhi[3];
-    as_bi_fatten(lo, hi, flo, fhi);
-    int32_t l = (size_t)id < bi->idcap ? bi->ent[id].leaf : AS_BI_NIL;
-    if (l != AS_BI_NIL) {
-        as_bi_node *nd = &bi->node[l];
-        if (as_bi_within(lo, hi, nd->lo, nd->hi) &&
-            as_bi_max_extent(nd->lo, nd->hi) <= AS_BI_LOOSE * as_bi_max_extent(flo, fhi)) {
-            memcpy(bi->ent[id].box, lo, 3 * sizeof *lo);
-            memcpy(bi->ent[id].box + 3, hi, 3 * sizeof *hi);
+    int L = as_bx_level(lo, hi);
+    int64_t c[3];
+    for (int k = 0; k < 3; k++) c[k] = as_bx_cell_of(lo[k], L);
+    int has = (size_t)id < bi->idcap && bi->rec[id].level != AS_BX_NOBOX;
+    if (has) {
+        as_bx_rec *r = &bi->rec[id];
+        if (r->level == L && r->cell[0] == c[0] && r->cell[1] == c[1] && r->cell[2] == c[2]) {
+            as_bx_ent *e = &bi->pool[r->pos];
+            memcpy(e->lo, lo, sizeof e->lo);
+            memcpy(e->hi, hi, sizeof e->hi);
             return ANISTAR_OK;
         }
-        if (as_bi_reserve_nodes(ctx, bi, 1))
-            return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory (%zu boxes)", bi->n);
-        as_bi_remove_leaf(bi, l);
-    } else {
-        if (as_bi_reserve_id(ctx, bi, id) || as_bi_reserve_nodes(ctx, bi, 2))
+    } else if ((size_t)id >= bi->idcap) {
+        size_t old = bi->idcap;
+        void *p = bi->rec;
+        if (as_grow(ctx, &p, &bi->idcap, (size_t)id + 1, sizeof *bi->rec))
             return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory (id %ld)", (long)id);
-        l = as_bi_take(bi);
-        bi->node[l].id = id;
-        bi->ent[id].leaf = l;
-        bi->n++;
+        bi->rec = p;
+        for (size_t i = old; i < bi->idcap; i++) bi->rec[i].level = AS_BX_NOBOX;
     }
-    memcpy(bi->node[l].lo, flo, sizeof flo);
-    memcpy(bi->node[l].hi, fhi, sizeof fhi);
-    memcpy(bi->ent[id].box, lo, 3 * sizeof *lo);
-    memcpy(bi->ent[id].box + 3, hi, 3 * sizeof *hi);
-    as_bi_insert_leaf(bi, l);
+    /* what attaching will take: a table entry and a first block for a new cell, or the
+     * next block size for a full one */
+    size_t t = as_bx_find(bi, c, L);
+    int need_cell = t == SIZE_MAX;
+    uint32_t need_cls = need_cell ? AS_BX_MIN_CLASS
+                        : bi->tab[t].count == (uint32_t)1 << bi->tab[t].cls ? bi->tab[t].cls + 1
+                                                                            : AS_BX_NONE;
+    if ((need_cell && as_bx_reserve_cell(ctx, bi)) ||
+        (need_cls != AS_BX_NONE && as_bx_reserve_block(ctx, bi, need_cls)))
+        return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory (%zu boxes)", bi->n);
+    if (has)
+        as_bx_detach(bi, id);
+    else
+        bi->n++;
+    as_bx_rec *r = &bi->rec[id];
+    memcpy(r->cell, c, sizeof r->cell);
+    r->level = L;
+    as_bx_attach(bi, id, lo, hi);
     return ANISTAR_OK;
 }
 
 int as_boxindex_remove(as_boxindex *bi, int32_t id) {
-    if (id < 0 || (size_t)id >= bi->idcap || bi->ent[id].leaf == AS_BI_NIL) return 0;
-    int32_t l = bi->ent[id].leaf;
-    as_bi_remove_leaf(bi, l);
-    as_bi_give(bi, l);
-    bi->ent[id].leaf = AS_BI_NIL;
+    if (id < 0 || (size_t)id >= bi->idcap || bi->rec[id].level == AS_BX_NOBOX) return 0;
+    as_bx_detach(bi, id);
+    bi->rec[id].level = AS_BX_NOBOX;
     bi->n--;
     return 1;
 }
 
 int as_boxindex_get(const as_boxindex *bi, int32_t id, double lo[3], double hi[3]) {
-    if (id < 0 || (size_t)id >= bi->idcap || bi->ent[id].leaf == AS_BI_NIL) return 0;
-    memcpy(lo, bi->ent[id].box, 3 * sizeof *lo);
-    memcpy(hi, bi->ent[id].box + 3, 3 * sizeof *hi);
+    if (id < 0 || (size_t)id >= bi->idcap || bi->rec[id].level == AS_BX_NOBOX) return 0;
+    const as_bx_ent *e = &bi->pool[bi->rec[id].pos];
+    memcpy(lo, e->lo, sizeof e->lo);
+    memcpy(hi, e->hi, sizeof e->hi);
     return 1;
 }
 
@@ -357,39 +379,67 @@ size_t as_boxindex_size(const as_boxindex *bi) { return bi->n; }
 
 /* ---- queries ------------------------------------------------------------------------------- */
 
+static inline int as_bx_meets(const as_bx_ent *e, const double lo[3], const double hi[3]) {
+    return e->hi[0] >= lo[0] && e->lo[0] <= hi[0] && e->hi[1] >= lo[1] && e->lo[1] <= hi[1] &&
+           e->hi[2] >= lo[2] && e->lo[2] <= hi[2];
+}
+
+/* Append the ids of the entries of table cell t that meet [lo, hi]. */
+static int as_bx_scan(anistar_context *ctx, const as_boxindex *bi, const as_bx_cell *C,
+                      const double lo[3], const double hi[3], as_idlist *out) {
+    const as_bx_ent *e = bi->pool + C->off;
+    for (uint32_t i = 0; i < C->count; i++)
+        if (as_bx_meets(&e[i], lo, hi) && as_idlist_push(ctx, out, e[i].id)) return -1;
+    return 0;
+}
+
 /*
- * as_bi_query — ids whose true box meets [lo, hi] (a point when lo == hi).
- * design: depth-first over the nodes whose box meets the query (leaf boxes are fat, so
- * this is a filter); at a leaf, test the true box. Sort the ids.
+ * as_bx_query — ids of the boxes meeting [lo, hi] (a point when lo == hi).
+ * design:
+ *   1. For each level L holding boxes: candidate lower-corner cells are
+ *      floor(lo_k / 2^L) - 1 .. floor(hi_k / 2^L) on each axis (extents are < 2^L).
+ *   2. If there are more candidate cells than boxes at that level, mark the level for a
+ *      pass over the table instead; otherwise probe each cell and test its entries (one
+ *      contiguous block per cell).
+ *   3. One pass over the table for the marked levels; sort the ids.
  */
-static anistar_status as_bi_query(anistar_context *ctx, const as_boxindex *bi,
+static anistar_status as_bx_query(anistar_context *ctx, const as_boxindex *bi,
                                   const double lo[3], const double hi[3], as_idlist *out) {
     out->n = 0;
-    if (bi->root == AS_BI_NIL) return ANISTAR_OK;
-    if (bi->node[bi->root].height >= AS_BI_STACK - 1) { /* never expected: plain scan */
-        for (size_t id = 0; id < bi->idcap; id++) {
-            const double *b = bi->ent[id].box;
-            if (bi->ent[id].leaf != AS_BI_NIL && as_bi_meets(b, b + 3, lo, hi) &&
-                as_idlist_push(ctx, out, (int32_t)id))
-                return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory in a query");
+    unsigned char scan[AS_BX_NLEVELS];
+    int any_scan = 0;
+    for (size_t a = 0; a < bi->nactive; a++) {
+        int L = bi->active[a];
+        int64_t c0[3], c1[3];
+        double cells = 1;
+        for (int k = 0; k < 3; k++) {
+            c0[k] = as_bx_cell_of(lo[k], L) - AS_BX_SPAN;
+            c1[k] = as_bx_cell_of(hi[k], L);
+            cells *= (double)c1[k] - (double)c0[k] + 1; /* no int64 overflow */
         }
-        return ANISTAR_OK;
-    }
-    int32_t st[AS_BI_STACK];
-    int sp = 0;
-    st[sp++] = bi->root;
-    while (sp > 0) {
-        const as_bi_node *nd = &bi->node[st[--sp]];
-        if (!as_bi_meets(nd->lo, nd->hi, lo, hi)) continue;
-        if (nd->child[0] != AS_BI_NIL) {
-            st[sp++] = nd->child[1];
-            st[sp++] = nd->child[0];
+        if (cells > (AS_BX_SPAN + 1) * (AS_BX_SPAN + 1) * (AS_BX_SPAN + 1) &&
+            cells > (double)bi->lvl_count[L - AS_BX_LMIN]) {
+            if (!any_scan) memset(scan, 0, sizeof scan);
+            any_scan = 1;
+            scan[L - AS_BX_LMIN] = 1;
             continue;
         }
-        const double *b = bi->ent[nd->id].box;
-        if (as_bi_meets(b, b + 3, lo, hi) && as_idlist_push(ctx, out, nd->id))
-            return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory in a query");
+        int64_t c[3];
+        for (c[0] = c0[0]; c[0] <= c1[0]; c[0]++)
+            for (c[1] = c0[1]; c[1] <= c1[1]; c[1]++)
+                for (c[2] = c0[2]; c[2] <= c1[2]; c[2]++) {
+                    size_t t = as_bx_find(bi, c, L);
+                    if (t != SIZE_MAX && as_bx_scan(ctx, bi, &bi->tab[t], lo, hi, out))
+                        return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory in a query");
+                }
     }
+    if (any_scan)
+        for (size_t t = 0; t < bi->tcap; t++) {
+            const as_bx_cell *C = &bi->tab[t];
+            if (C->level != AS_BX_EMPTY && scan[C->level - AS_BX_LMIN] &&
+                as_bx_scan(ctx, bi, C, lo, hi, out))
+                return as_fail(ctx, ANISTAR_ENOMEM, "boxindex: out of memory in a query");
+        }
     as_ids_sort(out->ids, out->n);
     return ANISTAR_OK;
 }
@@ -399,7 +449,7 @@ anistar_status as_boxindex_query_point(anistar_context *ctx, const as_boxindex *
     out->n = 0;
     if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
         return as_fail(ctx, ANISTAR_EINVAL, "boxindex: query point not finite");
-    return as_bi_query(ctx, bi, p, p, out);
+    return as_bx_query(ctx, bi, p, p, out);
 }
 
 anistar_status as_boxindex_query_box(anistar_context *ctx, const as_boxindex *bi,
@@ -408,57 +458,86 @@ anistar_status as_boxindex_query_box(anistar_context *ctx, const as_boxindex *bi
     for (int k = 0; k < 3; k++)
         if (!isfinite(lo[k]) || !isfinite(hi[k]) || !(lo[k] <= hi[k]))
             return as_fail(ctx, ANISTAR_EINVAL, "boxindex: query box invalid");
-    return as_bi_query(ctx, bi, lo, hi, out);
+    return as_bx_query(ctx, bi, lo, hi, out);
 }
 
-int as_boxindex_height(const as_boxindex *bi) {
-    return bi->root == AS_BI_NIL ? -1 : bi->node[bi->root].height;
-}
+size_t as_boxindex_levels(const as_boxindex *bi) { return bi->nactive; }
 
 /* ---- validation ---------------------------------------------------------------------------- */
 
-int as_boxindex_check(const as_boxindex *bi) {
-    size_t leaves = 0, internal = 0, freed = 0;
-    for (int32_t f = bi->free_head; f != AS_BI_NIL; f = bi->node[f].id) {
-        if (f < 0 || (size_t)f >= bi->nused || bi->node[f].height != -1 || ++freed > bi->nused)
-            return -1;
+int as_boxindex_check(anistar_context *ctx, const as_boxindex *bi) {
+    /* records */
+    size_t n = 0;
+    int32_t *counts = as_alloc_array(ctx, AS_BX_NLEVELS, sizeof *counts);
+    unsigned char *used = bi->pool_n ? as_alloc(ctx, bi->pool_n) : NULL;
+    int ok = counts && (used || bi->pool_n == 0);
+    if (ok) {
+        memset(counts, 0, AS_BX_NLEVELS * sizeof *counts);
+        if (used) memset(used, 0, bi->pool_n);
     }
-    for (size_t i = 0; i < bi->nused; i++) {
-        const as_bi_node *nd = &bi->node[i];
-        if (nd->height < 0) continue;
-        int32_t par = nd->parent;
-        if (par == AS_BI_NIL) {
-            if (bi->root != (int32_t)i) return -1;
-        } else {
-            if (par < 0 || (size_t)par >= bi->nused) return -1;
-            const as_bi_node *p = &bi->node[par];
-            if (p->child[0] != (int32_t)i && p->child[1] != (int32_t)i) return -1;
+    for (size_t id = 0; ok && id < bi->idcap; id++) {
+        const as_bx_rec *r = &bi->rec[id];
+        if (r->level == AS_BX_NOBOX) continue;
+        n++;
+        if (r->pos >= bi->pool_n) {
+            ok = 0;
+            break;
         }
-        if (nd->child[0] == AS_BI_NIL) {
-            if (nd->child[1] != AS_BI_NIL || nd->height != 0) return -1;
-            int32_t id = nd->id;
-            if (id < 0 || (size_t)id >= bi->idcap || bi->ent[id].leaf != (int32_t)i) return -1;
-            const double *b = bi->ent[id].box;
-            if (!as_bi_within(b, b + 3, nd->lo, nd->hi)) return -1; /* fat box holds box */
-            for (int k = 0; k < 3; k++)
-                if (!(b[k] <= b[3 + k])) return -1;
-            leaves++;
-            continue;
-        }
-        internal++;
-        const as_bi_node *a = &bi->node[nd->child[0]], *b = &bi->node[nd->child[1]];
-        if (a->parent != (int32_t)i || b->parent != (int32_t)i) return -1;
-        if (a->height < 0 || b->height < 0) return -1;
-        double lo[3], hi[3];
-        as_bi_union(a->lo, a->hi, b->lo, b->hi, lo, hi);
-        if (memcmp(lo, nd->lo, sizeof lo) || memcmp(hi, nd->hi, sizeof hi)) return -1;
-        int h = 1 + (a->height > b->height ? a->height : b->height);
-        if (nd->height != h) return -1;
+        const as_bx_ent *e = &bi->pool[r->pos];
+        if (e->id != (int32_t)id || r->level != as_bx_level(e->lo, e->hi)) ok = 0;
+        for (int k = 0; k < 3 && ok; k++)
+            if (r->cell[k] != as_bx_cell_of(e->lo[k], r->level) || !(e->lo[k] <= e->hi[k]))
+                ok = 0;
+        size_t t = ok ? as_bx_find(bi, r->cell, r->level) : SIZE_MAX;
+        if (t == SIZE_MAX || r->pos < bi->tab[t].off ||
+            r->pos >= bi->tab[t].off + bi->tab[t].count)
+            ok = 0;
+        if (ok) counts[r->level - AS_BX_LMIN]++;
     }
-    if (leaves != bi->n || leaves + internal + freed != bi->nused) return -1;
-    if (bi->n > 0 && internal != bi->n - 1) return -1;
-    if (bi->n == 0 && bi->root != AS_BI_NIL) return -1;
-    size_t ids = 0;
-    for (size_t id = 0; id < bi->idcap; id++) ids += bi->ent[id].leaf != AS_BI_NIL;
-    return ids == bi->n ? 0 : -1;
+    if (ok && (n != bi->n || memcmp(counts, bi->lvl_count, AS_BX_NLEVELS * sizeof *counts)))
+        ok = 0;
+    /* active levels */
+    size_t nact = 0;
+    for (int L = 0; ok && L < AS_BX_NLEVELS; L++) nact += bi->lvl_count[L] > 0;
+    if (ok && nact != bi->nactive) ok = 0;
+    for (size_t a = 0; ok && a < bi->nactive; a++)
+        if (bi->lvl_count[bi->active[a] - AS_BX_LMIN] <= 0 ||
+            (a > 0 && bi->active[a - 1] >= bi->active[a]))
+            ok = 0;
+    /* cells: findable, non-empty, blocks disjoint inside the pool */
+    size_t cells = 0, entries = 0;
+    for (size_t t = 0; ok && t < bi->tcap; t++) {
+        const as_bx_cell *C = &bi->tab[t];
+        if (C->level == AS_BX_EMPTY) continue;
+        cells++;
+        entries += C->count;
+        size_t size = (size_t)1 << C->cls;
+        if (as_bx_find(bi, C->c, C->level) != t || C->count == 0 || C->count > size ||
+            C->cls < AS_BX_MIN_CLASS || (size_t)C->off + size > bi->pool_n) {
+            ok = 0;
+            break;
+        }
+        for (size_t i = C->off; i < C->off + size && ok; i++) ok = !used[i]++;
+        for (uint32_t i = 0; i < C->count && ok; i++) {
+            const as_bx_ent *e = &bi->pool[C->off + i];
+            if (e->id < 0 || (size_t)e->id >= bi->idcap || bi->rec[e->id].pos != C->off + i)
+                ok = 0;
+        }
+    }
+    if (ok && (cells != bi->tn || entries != bi->n || (bi->tcap && 2 * bi->tn > bi->tcap)))
+        ok = 0;
+    /* free blocks: disjoint from everything else, and everything is covered */
+    for (int k = 0; ok && k < AS_BX_CLASSES; k++)
+        for (int32_t off = bi->free_block[k]; ok && off >= 0; off = bi->pool[off].id) {
+            size_t size = (size_t)1 << k;
+            if ((size_t)off + size > bi->pool_n) {
+                ok = 0;
+                break;
+            }
+            for (size_t i = (size_t)off; i < (size_t)off + size && ok; i++) ok = !used[i]++;
+        }
+    for (size_t i = 0; ok && i < bi->pool_n; i++) ok = used[i] == 1;
+    as_free(ctx, counts, AS_BX_NLEVELS * sizeof *counts);
+    as_free(ctx, used, bi->pool_n);
+    return ok ? 0 : -1;
 }

@@ -880,12 +880,13 @@ int as_bvh_check(anistar_context *ctx, const as_bvh *b) {
         const as_bvh_node *nd = &b->nodes[ni];
         if (nd->count == 0 || (size_t)nd->begin + nd->count > b->n) return -1;
         double lo[3], hi[3];
-        for (uint32_t s = nd->begin; s < nd->begin + nd->count; s++) {
+        as_bvh_slot_box(b, nd->begin, lo, hi);
+        for (uint32_t s = nd->begin + 1; s < nd->begin + nd->count; s++) {
             double ilo[3], ihi[3];
             as_bvh_slot_box(b, s, ilo, ihi);
             for (int k = 0; k < 3; k++) {
-                if (s == nd->begin || ilo[k] < lo[k]) lo[k] = ilo[k];
-                if (s == nd->begin || ihi[k] > hi[k]) hi[k] = ihi[k];
+                if (ilo[k] < lo[k]) lo[k] = ilo[k];
+                if (ihi[k] > hi[k]) hi[k] = ihi[k];
             }
         }
         for (int k = 0; k < 3; k++)

@@ -21,6 +21,10 @@
  * Degenerate triangles (three exactly collinear vertices) have no interior: segment and
  * parity queries ignore them (in a closed mesh their edges belong to other triangles);
  * box and closest-point queries treat them as the segments they are.
+ *
+ * Query coordinates must be finite and within the range of as_orient3d (anistar.h:
+ * magnitudes in [1e-40, 1e40]); other inputs give unspecified answers (never a memory
+ * error). The build rejects non-finite data.
  */
 #ifndef ANISTAR_BVH_H
 #define ANISTAR_BVH_H

@@ -34,7 +34,8 @@
  *
  * Lifetime: as_del3_init / as_del3_destroy; as_del3_reset empties it and keeps capacity
  * (a reset structure rebuilt with the same calls gives identical arrays). Memory comes
- * from the context allocator; no allocation per tet (amortised array growth).
+ * from the context allocator; no allocation per tet (amortised array growth): 36 bytes
+ * per tet slot, 44 per vertex (about 280 bytes per point for uniform random points).
  * All functions are reentrant (no globals); one structure is used by one thread at a time.
  *
  * Debug: build with -DAS_DEL3_DEBUG to run both validators after every insertion (an
@@ -52,8 +53,9 @@
 #define AS_DEL3_INF (-1)  /* the infinite vertex, in tet_v */
 #define AS_DEL3_DEAD (-2) /* tet_v[4t] of a free tet slot */
 
-/* as_del3_insert's return value when the point equals an existing vertex (bit for bit
- * after stretching): nothing changed, *vertex is that vertex. Not an anistar_status. */
+/* as_del3_insert's return value when the point equals an existing vertex (equal stored
+ * coordinates after stretching, compared with ==, so -0 equals +0): nothing changed,
+ * *vertex is that vertex. Not an anistar_status. */
 #define AS_DEL3_DUPLICATE (-1)
 
 /* A growable int32 array owned by the caller, memory from a context (the one of the
@@ -72,6 +74,10 @@ typedef struct as_del3_bface {
     int32_t slot; /* where the new point goes */
 } as_del3_bface;
 
+/* Cavity-local vertex numbers: a cavity whose boundary has at most this many vertices is
+ * glued through a direct table of AS_DEL3_LMAX^2 entries; bigger ones through a hash. */
+#define AS_DEL3_LMAX 64
+
 /* An entry of the cavity edge table (internal). */
 typedef struct as_del3_edge {
     int32_t a, b, link;
@@ -83,7 +89,8 @@ typedef struct as_del3_stats {
     uint64_t walk_steps;          /* tets visited by the walks */
     uint64_t conflict_tets;       /* tets removed by insertions */
     uint64_t created_tets;        /* tets created by insertions */
-    uint64_t big_cavities;        /* cavities that needed the edge table to grow */
+    uint64_t big_cavities;        /* cavities glued through the hash (> AS_DEL3_LMAX
+                                     boundary vertices) */
 } as_del3_stats;
 
 typedef struct as_del3 {
@@ -95,6 +102,8 @@ typedef struct as_del3 {
     double *xyz;   /* 3 * cap_v: stored (stretched) coordinates */
     int64_t *gid;  /* cap_v: global ids (perturbation keys) */
     int32_t *vtet; /* cap_v: an incident live tet (valid once the set is 3D) */
+    int32_t *vloc; /* cap_v + 1 entries from vloc[-1] (the infinite vertex): cavity-local
+                      numbers during an insertion, -1 otherwise */
 
     /* tets */
     int32_t nt;    /* slots in use (live or free): 0 .. nt-1 */
@@ -121,6 +130,8 @@ typedef struct as_del3 {
     size_t cap_etab;
     int32_t *etouch;
     size_t cap_etouch;
+    int32_t *ltab; /* AS_DEL3_LMAX^2 entries, 0 between insertions */
+    int32_t lverts[AS_DEL3_LMAX];
     int32_t conflict_head; /* the conflict list (through next) of the last search */
     int32_t nconflict;
 
@@ -176,8 +187,8 @@ int as_del3_insert_frame(as_del3 *d, const as_metric_frame *mf, const double q[3
 /*
  * Bulk insertion of n points pts[3i..3i+2] (in the frame mf, NULL: identity) with global
  * ids gids[i] (gids == NULL: gid i). More than 64 points are inserted in BRIO order
- * (random rounds of doubling size, deterministic) with a Hilbert-curve order inside each
- * round; fewer are inserted in the given order. vertex (optional, n entries) receives the
+ * (random rounds growing by 8, deterministic: as_sort_brio with d's seed) with a Hilbert
+ * order inside each round; fewer are inserted in the given order. vertex (optional, n entries) receives the
  * vertex of each point (the existing vertex for a duplicate); *ndup (optional) the number
  * of duplicates. Returns ANISTAR_OK, ANISTAR_EINVAL (non-finite coordinates: nothing
  * inserted) or ANISTAR_ENOMEM (the triangulation holds a subset of the points, valid;
@@ -202,7 +213,8 @@ int as_del3_conflict_zone(as_del3 *d, const double p[3], int64_t gid, int32_t hi
 
 /* 1 if p (with provisional global id gid, not a vertex of t) is strictly inside the
  * perturbed circumsphere of live tet t, i.e. an insertion of p would remove t; 0 if not
- * (also when p equals a vertex of t). Exact. Infinite tets: the rule of del3.c. */
+ * (also when p equals a vertex of t, or t is not a live tet). Exact. Infinite tets: the
+ * rule of del3.c. */
 int as_del3_in_sphere(const as_del3 *d, int32_t t, const double p[3], int64_t gid);
 
 /* The tets incident to vertex v (finite and infinite), in *out (cleared first).
@@ -217,12 +229,12 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out);
 
 /*
  * Circumcenter of finite tet t, in the stored (stretched) frame; mapping it back by F^-1
- * is the caller's job. Accuracy: computed relative to vertex 0 by Cramer's rule in
- * doubles when that guarantees an error below 2^-40 times the circumradius
- * (kappa = L^3/|det| <= 2^8, L the longest edge from vertex 0); otherwise (nearly flat
- * tets) in double-double from the exact edge vectors: error about 2^-100 kappa times the
- * circumradius (below 2^-40 unless the relative volume is under ~1e-18). See del3.c.
- * Returns 0, or -1 if t is infinite or dead (c untouched).
+ * is the caller's job. Accuracy (relative to the circumradius), by the tet's condition
+ * kappa = L^3/|det| (L its longest edge from vertex 0; ~1.4 for a regular tet): Cramer's
+ * rule in doubles when kappa <= 2^8 (error < 2^-40); double-double on the exact edge
+ * vectors when kappa <= 2^50 (error < 2^-45); beyond, exact numerators and denominator
+ * (expansions) rounded once (error a few ulps). See del3.c. Returns 0, or -1 if t is
+ * infinite or dead (c untouched).
  */
 int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]);
 

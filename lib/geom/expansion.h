@@ -126,7 +126,8 @@ static inline void as_two_square(double a, double *x, double *y) {
 /* h[0..3] = (a1 + a0) - (b1 + b0) exactly, where (a1, a0) and (b1, b0) are two-component
  * expansions (a0, b0 the small parts). h is nonoverlapping, increasing, may hold zeros.
  * Used for the exact 2x2 minors a1 = fl(p*q), a0 = its error, etc. */
-static inline void as_two_two_diff(double a1, double a0, double b1, double b0, double h[4]) {
+static inline void as_two_two_diff(double a1, double a0, double b1, double b0,
+                                   double h[4]) {
     double m, m0, s1, s0, t;
     /* (a1, a0) - b0: three components (s1, s0, h[0]). */
     as_two_diff(a0, b0, &m, &h[0]);
@@ -146,32 +147,36 @@ static inline int as_exp_sum(int elen, const double *e, int flen, const double *
                              double *h) {
     int i = 0, j = 0, k = 0;
     double q, qn, hh;
-    /* Merge by magnitude, propagating the running sum q through two_sum. */
+    /* Merge by magnitude, propagating the running sum q through two_sum. The loop is
+     * written without data-dependent branches (the order of e and f components is
+     * unpredictable); h[k] is written every step, which stays within h's elen + flen. */
     if (j >= flen || (i < elen && !(fabs(f[j]) < fabs(e[i])))) {
         q = e[i++];
     } else {
         q = f[j++];
     }
     while (i < elen && j < flen) {
-        double next;
-        if (fabs(f[j]) < fabs(e[i])) {
-            next = f[j++];
-        } else {
-            next = e[i++];
-        }
+        double ei = e[i], fj = f[j];
+        int tf = fabs(fj) < fabs(ei);
+        double next = tf ? fj : ei;
+        j += tf;
+        i += 1 - tf;
         as_two_sum(q, next, &qn, &hh);
         q = qn;
-        if (hh != 0.0) h[k++] = hh;
+        h[k] = hh;
+        k += hh != 0.0;
     }
     while (i < elen) {
         as_two_sum(q, e[i++], &qn, &hh);
         q = qn;
-        if (hh != 0.0) h[k++] = hh;
+        h[k] = hh;
+        k += hh != 0.0;
     }
     while (j < flen) {
         as_two_sum(q, f[j++], &qn, &hh);
         q = qn;
-        if (hh != 0.0) h[k++] = hh;
+        h[k] = hh;
+        k += hh != 0.0;
     }
     if (q != 0.0 || k == 0) h[k++] = q;
     return k;

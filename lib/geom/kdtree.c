@@ -497,7 +497,7 @@ static inline int as_kd_heap_wants(const as_kd_heap *h, double bound) {
  */
 size_t as_kdtree_knn(const as_kdtree *kd, const double q[3], size_t k, int32_t *ids,
                      double *d2) {
-    if (k == 0 || kd->n == 0) return 0;
+    if (k == 0 || kd->n == 0 || !as_kd_finite3(q)) return 0;
     as_kd_heap h = {ids, d2, 0, k};
     struct {
         uint32_t node;
@@ -630,7 +630,7 @@ static anistar_status as_kd_range_query(anistar_context *ctx, const as_kdtree *k
 anistar_status as_kdtree_radius(anistar_context *ctx, const as_kdtree *kd, const double q[3],
                                 double r, as_idlist *out) {
     out->n = 0;
-    if (!(r >= 0)) return ANISTAR_OK;
+    if (!(r >= 0) || !as_kd_finite3(q)) return ANISTAR_OK;
     as_kd_range rg;
     memset(&rg, 0, sizeof rg);
     rg.ball = 1;
@@ -641,6 +641,9 @@ anistar_status as_kdtree_radius(anistar_context *ctx, const as_kdtree *kd, const
 
 anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
                              const double hi[3], as_idlist *out) {
+    out->n = 0;
+    for (int a = 0; a < 3; a++)
+        if (!(lo[a] <= hi[a])) return ANISTAR_OK; /* empty (or NaN) box */
     as_kd_range rg;
     memset(&rg, 0, sizeof rg);
     memcpy(rg.lo, lo, sizeof rg.lo);

@@ -103,19 +103,20 @@ size_t as_kdtree_tree_count(const as_kdtree *kd);
  * as_kdtree_knn — the min(k, size) points nearest to q, written to ids[0..) and their
  * squared distances to d2[0..), sorted by (d2, id). ids and d2 must both hold k entries:
  * they double as the working heap, so the query allocates nothing.
- * Returns the number of points written.
+ * Returns the number of points written (0 when q is not finite).
  */
 size_t as_kdtree_knn(const as_kdtree *kd, const double q[3], size_t k, int32_t *ids,
                      double *d2);
 
 /* All ids whose point x satisfies |x - q|^2 <= r*r (squared distance as above), sorted
  * ascending, into out (cleared first). ANISTAR_OK or ANISTAR_ENOMEM (out then holds a
- * partial, unsorted result). r < 0 or NaN gives an empty result. */
+ * partial, unsorted result). r < 0 or NaN, or q not finite, gives an empty result. */
 anistar_status as_kdtree_radius(anistar_context *ctx, const as_kdtree *kd, const double q[3],
                                 double r, as_idlist *out);
 
 /* All ids whose point lies in the closed box [lo, hi], sorted ascending, into out
- * (cleared first). ANISTAR_OK or ANISTAR_ENOMEM. */
+ * (cleared first); empty when lo_k > hi_k (or NaN) on some axis. ANISTAR_OK or
+ * ANISTAR_ENOMEM. */
 anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
                              const double hi[3], as_idlist *out);
 

@@ -135,13 +135,13 @@ int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
         int p = as_jac_p[k], q = as_jac_q[k], r = as_jac_r[k];
         double apq = o[k];
         /* With delta = a_qq - a_pp, b = sign(delta) 2 a_pq (sign(0) = +1),
-         * h = sqrt(delta^2 + 4 a_pq^2), u = h + |delta| and w = sqrt(2 h u):
+         * h = sqrt(delta^2 + 4 a_pq^2), u = h + |delta| and wv = sqrt(2 h u):
          *   t = sign(theta) / (|theta| + sqrt(theta^2 + 1)) = b / u,
-         *   c = 1 / sqrt(1 + t^2) = u / w,  s = t c = b / w,  tau = s / (1 + c) = b / (w + u)
-         * (c itself is not needed by the updates)
-         * ((|delta| + h)^2 + 4 a_pq^2 = 2 h u). Only sums of positive terms, no cancellation,
-         * and a short dependency chain (two square roots, then independent divisions). No
-         * overflow or underflow: |delta| < 6 after scaling and |a_pq| > 2^-500. */
+         *   c = 1 / sqrt(1 + t^2) = u / wv, s = t c = b / wv, tau = s / (1 + c) = b / (wv + u),
+         * since (|delta| + h)^2 + 4 a_pq^2 = 2 h u (c itself is not needed by the updates).
+         * Only sums of positive terms, no cancellation, and a short dependency chain (two
+         * square roots, then independent divisions). No overflow or underflow: |delta| < 6
+         * after scaling and |a_pq| > 2^-500 (it is the largest entry and one is live). */
         double delta = d[q] - d[p];
         double b = delta < 0 ? -2 * apq : 2 * apq;
         double h = sqrt(delta * delta + 4 * apq * apq);
@@ -153,8 +153,8 @@ int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
         d[p] -= t * apq;
         d[q] += t * apq;
         o[k] = 0;
-        /* The entries (r, p) and (r, q): their pair indices. */
-        /* The pair {i, j} has index i + j - 1: {0,1} -> 0, {0,2} -> 1, {1,2} -> 2. */
+        /* The entries (r, p) and (r, q) rotate; the pair {i, j} has index i + j - 1:
+         * {0,1} -> 0, {0,2} -> 1, {1,2} -> 2. */
         int kp = p + r - 1, kq = q + r - 1;
         double arp = o[kp], arq = o[kq];
         o[kp] = arp - s * (arq + tau * arp);

@@ -29,7 +29,8 @@ static void as_metric_fill(as_metric_frame *mf) {
     as_sym3_to_mat3(s, mf->finv);
 }
 
-/* e finite, positive, ascending, cond <= AS_METRIC_MAX_COND_F, and F, F^-1, M finite. */
+/* e (ascending) finite and positive, e[2] / e[0] <= AS_METRIC_MAX_COND_F, and 1/e, e^2
+ * finite (so F, F^-1 and M are). */
 static int as_metric_e_valid(const double e[3]) {
     for (int k = 0; k < 3; k++)
         if (!(e[k] > 0) || !isfinite(e[k]) || !isfinite(1 / e[k]) || !isfinite(e[k] * e[k]))
@@ -72,8 +73,9 @@ int as_metric_frame_init(as_metric_frame *mf, const double m[6]) {
  * Returns 0; -1 (mf zeroed) if some e[k] is not finite and positive, max e / min e > 1e12,
  * or u is not finite and orthonormal to within AS_METRIC_ORTHO_TOL.
  * Notes: e need not be sorted: the pairs (e[k], u + 3k) are sorted ascending (stably) into
- *   mf->e, mf->u. u is kept as given (not re-orthonormalised), so F and F^-1 are exactly
- *   the caller's U diag(e) U^T, U diag(1/e) U^T rounded once.
+ *   mf->e, mf->u. u is kept as given (not re-orthonormalised): F, F^-1 and M are the
+ *   caller's U diag(e) U^T, U diag(1/e) U^T, U diag(e^2) U^T evaluated in a fixed order
+ *   (as_sym3_from_eigen), so equal inputs give bit-identical frames.
  */
 int as_metric_frame_from_eigen(as_metric_frame *mf, const double u[9], const double e[3]) {
     int idx[3] = {0, 1, 2};
@@ -274,6 +276,9 @@ static void as_lambda_max_bounds(const double s[6], double *lo, double *hi) {
  *      a real-rooted q, q q'' < 0 because q q'' < q'^2, Newton's inequality). Hence all
  *      eigenvalues < t iff p, p', p'' > 0 at t, and some eigenvalue > t iff one of them
  *      is < 0.
+ *      With tr D = 0, p'(t) = 3 t^2 - r^2 / 2 and p''(t) = 6 t (r as in
+ *      as_lambda_max_bounds), so the p' and p'' conditions are exactly stage 1's bounds
+ *      mu + r / sqrt 6 and mu; what stage 1 cannot settle hinges on the sign of p.
  *   3. Each of p, p', p'' is evaluated with a running bound on its rounding error: the
  *      same expression on absolute values, times 2^-48 (> 16 u: no term goes through
  *      more than ~12 roundings), plus DBL_MIN for underflowed products; a sign counts only
@@ -347,9 +352,13 @@ static int as_metric_filter_pair(const as_metric_frame *a, const as_metric_frame
  * as_metric_distortion_le — whether gamma(M_a, M_b) <= g.
  *
  * Returns 1 or 0. It equals (as_metric_distortion(a, b) <= g) for every pair, except
- * possibly when gamma lies within ~1e-13 relative of g (both sides round; the filter
- * decides only outside a margin of 2^-44 g^2 and otherwise runs the very computation of
- * as_metric_distortion on the same Gram matrices, so the exact path is bit-identical).
+ * possibly when gamma lies within ~1e-13 relative of g. Why: both work on the same two
+ * computed Gram matrices; the filter decides only when it is certain of the sign of
+ * lambda_max - g^2 for them (the bounds with a margin of 2^-44 g^2, the sign test with
+ * rigorous rounding bounds), and otherwise runs the very computation of
+ * as_metric_distortion (bit-identical); while the Jacobi eigenvalue behind
+ * as_metric_distortion is within a few ulps of that lambda_max. So they can differ only
+ * when lambda_max is within those few ulps of g^2 (the tests allow 1e-13).
  * g < 1 or NaN gives 0 (gamma >= 1). Symmetric in (a, b) up to that same boundary case.
  * design: DESIGN.md 4.2's trace filter, sharpened. With A = F_b^-1 M_a F_b^-1 = G^T G and
  *   B = H^T H (as_metric_grams), gamma <= g iff lambda_max(A) <= g^2 and
@@ -359,10 +368,13 @@ static int as_metric_filter_pair(const as_metric_frame *a, const as_metric_frame
  *   as_lambda_max_bounds is used instead (it includes the trace). Its lower bound rejects.
  *   1. same F: gamma = 1 <= g.
  *   2. Gram matrices A, B (~90 flops).
- *   3. reject if lo_A or lo_B > g^2 (1 + margin); accept if hi_A and hi_B <= g^2 (1 - margin).
+ *   3. per side S = A, B: reject if lo_S > g^2 (1 + margin); accept if hi_S <= g^2
+ *      (1 - margin); else the exact sign test of as_lambda_max_vs (Budan-Fourier on the
+ *      characteristic polynomial, ~60 flops), which is undecided only within ~1e-14 of
+ *      the boundary.
  *   4. else the exact decision: as_metric_distortion's value <= g.
- *   On the benchmark's mix (anisotropy <= 10, pairs around gamma = 1.5) step 3 settles
- *   ~85% of the pairs at g = 1.5 and ~98% at g = 1.2 or 2.
+ *   On the benchmark's mix (anisotropy <= 10, pairs around gamma = 1.5) the bounds alone
+ *   settle ~85% of the pairs at g = 1.5 (~98% at g = 1.2 or 2), with the sign test 100%.
  */
 int as_metric_distortion_le(const as_metric_frame *a, const as_metric_frame *b, double g) {
     as_metric_pair pr;

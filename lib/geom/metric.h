@@ -43,7 +43,8 @@ double as_metric_dist(const as_metric_frame *mf, const double a[3], const double
 double as_metric_distortion(const as_metric_frame *a, const as_metric_frame *b);
 /* 1 if gamma(M, N) <= g, 0 otherwise (0 for g < 1 or NaN). A filter (DESIGN.md 4.2's
  * trace filter, sharpened: bounds on lambda_max from the trace and the deviatoric norm of
- * the Gram matrices) settles most pairs without an eigen-solve; the answer equals
+ * the Gram matrices, then an exact sign test on their characteristic polynomials) settles
+ * nearly every pair without an eigen-solve (~0.15 us); the answer equals
  * (as_metric_distortion(a, b) <= g) except possibly when gamma is within ~1e-13 relative
  * of g. */
 int as_metric_distortion_le(const as_metric_frame *a, const as_metric_frame *b, double g);

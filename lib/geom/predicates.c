@@ -5,10 +5,11 @@
  * design:
  *  - Ladder per predicate (Shewchuk 1997, "Adaptive precision floating-point arithmetic
  *    and fast robust geometric predicates"; our code):
- *      0. semi-static filter: the plain determinant of the differences plus one bound
- *         c * max|dx| * max|dy| * max|dz| (* (max|dx|^2+max|dy|^2+max|dz|^2) for
- *         insphere); c dominates Shewchuk's stage-A bound times the permanent, so the
- *         common case costs one determinant, a few max/abs and one comparison;
+ *      0. semi-static filter: the plain determinant of the differences against one
+ *         bound c * sx * sy * sz (* max lift for insphere), sx = sum over the rows of
+ *         |dx| etc.; the permanent is a sub-sum of the expanded product sx sy sz
+ *         (times lmax), so c times that dominates Shewchuk's stage-A bound and the
+ *         common case costs one determinant, a few abs/add/mul and one comparison;
  *      A. Shewchuk's stage A: the same determinant against errA * permanent;
  *      B. the exact determinant of the rounded differences (expansions), against
  *         errB * permanent; if the differences were exact it is the answer;
@@ -22,22 +23,29 @@
  *    gamma_n * k u * perm; orient3d: k = 3, n = 7 -> 24 u^2 <= 26 u^2; insphere: k = 5,
  *    n = 11 -> 65 u^2 <= 71 u^2 (the constants of Shewchuk's bounds, which we reuse).
  *  - Stage-0 constants: orient3d's permanent (computed in floating point) is at most
- *    6 mx my mz (1+u)^5, insphere's at most 24 mx my mz (mx^2+my^2+mz^2) (1+u)^12, and
- *    the bound's own products round down by at most (1-u)^4; so
- *    c_o3d = 6 errA_o3d (1 + 16u) <= (42 + 1100u) u and
- *    c_isp = 24 errA_isp (1 + 24u) <= (384 + 16384u) u.
- *  - Non-finite input makes the filter comparisons false (NaN/inf determinant or bound);
+ *    sx sy sz (1+u)^5 and insphere's at most lmax sx sy sz (1+u)^11 (each row triple
+ *    (j, k, l) of distinct rows appears once in the sum of the four 3x3 permanents);
+ *    the bound's own sums and products round down by at most (1-u)^9, resp. (1-u)^16;
+ *    so c_o3d = errA_o3d (1 + 16u) <= (7 + 256u) u and
+ *    c_isp = errA_isp (1 + 32u) <= (16 + 1024u) u suffice.
+ *  - The fast path is one determinant, 9 or 12 fabs, 6 or 9 adds, 3 or 4 products
+ *    (+ 3 max for insphere) and one comparison |det| > bound (false for NaN), then a
+ *    tail call to the noinline slow path; measured at <= 1.5x the plain determinant
+ *    (bench/bench_predicates.c).
+ *  - Non-finite input makes the filter comparison false (NaN/inf determinant or bound);
  *    the slow path then sees a non-finite permanent and returns NaN. Finite input whose
  *    permanent overflows also returns NaN (outside the valid range).
  *  - Valid input range (what the exactness proof needs and the tests check): finite
- *    coordinates, each 0 or of magnitude in [1e-40, 1e+40] (see anistar.h). Then every
- *    intermediate value of every stage is a multiple of 2^-1074 (the coordinates are
- *    multiples of 2^-185, degree <= 5 products multiples of 2^-925, so underflow is
- *    exact), and every product stays below 2^700 (no overflow). The bound analysis of
- *    stages 0-C also needs the bounds themselves to be normal numbers: the smallest
- *    nonzero bound is >= u * 2^-925. The expansion routines' exactness extends further
- *    (down to magnitudes ~1.7e-49 and up to ~1e60 for insphere), but only the range
- *    above is promised and tested.
+ *    coordinates, each 0 or of magnitude in [1e-40, 1e+40] (anistar.h). Such a
+ *    coordinate is a multiple of 2^-185 (the ulp of 1e-40), so every intermediate value
+ *    of every stage (degree <= 5) is a multiple of 2^-925 and underflow is exact; every
+ *    product stays below 2^700 (no overflow); the stage-0, A and B bounds stay normal
+ *    numbers, and stage C's (>= 71 u^2 2^-925, possibly subnormal) loses at most 2^-1075
+ *    to rounding, far less than the slack 6 u^2 perm between 65 u^2 and 71 u^2. Beyond the
+ *    range the argument fails (measured: exact to about [1e-90, 1e+100] for orient3d
+ *    and [1e-48, 1e+60] for insphere; not promised).
+ *  - Stack: the exact insphere expansion may reach 5760 components in the worst case,
+ *    so as_insphere_exact (and stage D) uses about 110 KB of stack.
  *
  * insphere_sos — symbolic perturbation (Edelsbrunner & Muecke's SoS applied to the
  * lifted points; the "first nonzero orient3d minor" rule of Devillers & Teillaud and of
@@ -91,34 +99,43 @@
 #define AS_O3D_ERRA ((7.0 + 56.0 * AS_EPS) * AS_EPS)
 #define AS_O3D_ERRB ((3.0 + 28.0 * AS_EPS) * AS_EPS)
 #define AS_O3D_ERRC ((26.0 + 288.0 * AS_EPS) * AS_EPS * AS_EPS)
-#define AS_O3D_STATIC ((42.0 + 1100.0 * AS_EPS) * AS_EPS)
+#define AS_O3D_STATIC ((7.0 + 256.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRA ((16.0 + 224.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRB ((5.0 + 72.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRC ((71.0 + 1408.0 * AS_EPS) * AS_EPS * AS_EPS)
-#define AS_ISP_STATIC ((384.0 + 16384.0 * AS_EPS) * AS_EPS)
+#define AS_ISP_STATIC ((16.0 + 1024.0 * AS_EPS) * AS_EPS)
 
 /* ---- bench-only counters ------------------------------------------------------------- */
 
+#if defined(__GNUC__)
+#define AS_NOINLINE __attribute__((noinline))
+#else
+#define AS_NOINLINE
+#endif
+
 #ifdef ANISTAR_BENCH
 /* initial-exec: one %fs-relative add per count, no __tls_get_addr call in -fPIC code
- * (which would also make the fast path save registers around it). */
+ * (which would also make the fast path save registers around it). The fast paths only
+ * count calls; stage[0] (settled by the filters) is derived when the counters are read. */
 #if defined(__GNUC__)
 #define AS_TLS_MODEL __attribute__((tls_model("initial-exec")))
 #else
 #define AS_TLS_MODEL
 #endif
 static _Thread_local as_pred_counters as_pc AS_TLS_MODEL;
-as_pred_counters *as_pred_counters_get(void) { return &as_pc; }
+as_pred_counters *as_pred_counters_get(void) {
+    as_pc.orient3d_stage[0] = as_pc.orient3d_calls - as_pc.orient3d_stage[1] -
+                              as_pc.orient3d_stage[2] - as_pc.orient3d_stage[3];
+    as_pc.insphere_stage[0] = as_pc.insphere_calls - as_pc.insphere_stage[1] -
+                              as_pc.insphere_stage[2] - as_pc.insphere_stage[3];
+    return &as_pc;
+}
 void as_pred_counters_reset(void) { memset(&as_pc, 0, sizeof as_pc); }
 #define AS_COUNT(field) (as_pc.field++)
 #else
 #define AS_COUNT(field) ((void)0)
 #endif
 
-static inline double as_max3(double a, double b, double c) {
-    double m = a > b ? a : b;
-    return m > c ? m : c;
-}
 static inline double as_max4(double a, double b, double c, double d) {
     double m = a > b ? a : b;
     double n = c > d ? c : d;
@@ -139,23 +156,26 @@ static inline double as_o3d_det(double adx, double ady, double adz, double bdx, 
 }
 
 /* out = pz [qr] - qz [pr] + rz [pq] (the 3x3 determinant of the raw rows p, q, r), given
- * the exact 2x2 xy-minors [qr], [pr], [pq] (4 components each). out: 24 doubles. */
-static int as_det3_raw(const double *p, const double *q, const double *r, const double *qr,
-                       const double *pr, const double *pq, double *out) {
+ * the exact 2x2 xy-minors [qr], [pr], [pq] (lengths nqr, npr, npq <= 4), compressed.
+ * out: 24 doubles. */
+static int as_det3_raw(const double *p, const double *q, const double *r, int nqr,
+                       const double *qr, int npr, const double *pr, int npq,
+                       const double *pq, double *out) {
     double t1[8], t2[8], t3[8], s[16];
-    int l1 = as_exp_scale(4, qr, p[2], t1);
-    int l2 = as_exp_scale(4, pr, -q[2], t2);
-    int l3 = as_exp_scale(4, pq, r[2], t3);
+    int l1 = as_exp_scale(nqr, qr, p[2], t1);
+    int l2 = as_exp_scale(npr, pr, -q[2], t2);
+    int l3 = as_exp_scale(npq, pq, r[2], t3);
     int ls = as_exp_sum(l1, t1, l2, t2, s);
     return as_exp_compress(as_exp_sum(ls, s, l3, t3, out), out);
 }
 
-/* [pq] = px qy - qx py exactly (4 components). */
-static void as_minor2_raw(const double *p, const double *q, double out[4]) {
+/* [pq] = px qy - qx py exactly, compressed (at most 4 components). Returns the length. */
+static int as_minor2_raw(const double *p, const double *q, double out[4]) {
     double p1, p0, q1, q0;
     as_two_product(p[0], q[1], &p1, &p0);
     as_two_product(q[0], p[1], &q1, &q0);
     as_two_two_diff(p1, p0, q1, q0, out);
+    return as_exp_compress(4, out);
 }
 
 /* out = orient3d(a, b, c, d) exactly, as
@@ -165,16 +185,13 @@ static int as_o3d_exact_exp(const double *a, const double *b, const double *c,
                             const double *d, double *out) {
     double ab[4], ac[4], ad[4], bc[4], bd[4], cd[4];
     double abc[24], abd[24], acd[24], bcd[24], s1[48], s2[48];
-    as_minor2_raw(a, b, ab);
-    as_minor2_raw(a, c, ac);
-    as_minor2_raw(a, d, ad);
-    as_minor2_raw(b, c, bc);
-    as_minor2_raw(b, d, bd);
-    as_minor2_raw(c, d, cd);
-    int l1 = as_det3_raw(a, b, c, bc, ac, ab, abc);
-    int l2 = as_det3_raw(a, b, d, bd, ad, ab, abd);
-    int l3 = as_det3_raw(a, c, d, cd, ad, ac, acd);
-    int l4 = as_det3_raw(b, c, d, cd, bd, bc, bcd);
+    int nab = as_minor2_raw(a, b, ab), nac = as_minor2_raw(a, c, ac);
+    int nad = as_minor2_raw(a, d, ad), nbc = as_minor2_raw(b, c, bc);
+    int nbd = as_minor2_raw(b, d, bd), ncd = as_minor2_raw(c, d, cd);
+    int l1 = as_det3_raw(a, b, c, nbc, bc, nac, ac, nab, ab, abc);
+    int l2 = as_det3_raw(a, b, d, nbd, bd, nad, ad, nab, ab, abd);
+    int l3 = as_det3_raw(a, c, d, ncd, cd, nad, ad, nac, ac, acd);
+    int l4 = as_det3_raw(b, c, d, ncd, cd, nbd, bd, nbc, bc, bcd);
     as_exp_negate(l2, abd);
     as_exp_negate(l4, bcd);
     int m1 = as_exp_sum(l1, abc, l2, abd, s1);
@@ -189,22 +206,25 @@ static double as_o3d_exact_value(const double *a, const double *b, const double 
     return as_exp_value(n, e);
 }
 
-double as_orient3d_fast(const double *a, const double *b, const double *c, const double *d) {
+double as_orient3d_fast(const double *a, const double *b, const double *c,
+                        const double *d) {
     return as_o3d_det(a[0] - d[0], a[1] - d[1], a[2] - d[2], b[0] - d[0], b[1] - d[1],
                       b[2] - d[2], c[0] - d[0], c[1] - d[1], c[2] - d[2]);
 }
 
-double as_orient3d_exact(const double *a, const double *b, const double *c, const double *d) {
+double as_orient3d_exact(const double *a, const double *b, const double *c,
+                         const double *d) {
     for (int k = 0; k < 3; k++)
         if (!isfinite(a[k]) || !isfinite(b[k]) || !isfinite(c[k]) || !isfinite(d[k]))
             return NAN;
-    return as_o3d_exact_value(a, b, c, d);
+    double v = as_o3d_exact_value(a, b, c, d);
+    return isfinite(v) ? v : NAN; /* overflow (outside the valid range) */
 }
 
 /* Stages A-D of orient3d (the semi-static filter failed). Returns the determinant's
  * sign exactly with an approximate magnitude, NaN for non-finite input or overflow. */
-static double as_o3d_adapt(const double *a, const double *b, const double *c,
-                           const double *d) {
+static AS_NOINLINE double as_o3d_adapt(const double *a, const double *b, const double *c,
+                                       const double *d) {
     double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
     double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
     double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
@@ -213,16 +233,14 @@ static double as_o3d_adapt(const double *a, const double *b, const double *c,
     double bdxcdy = bdx * cdy, cdxbdy = cdx * bdy;
     double cdxady = cdx * ady, adxcdy = adx * cdy;
     double adxbdy = adx * bdy, bdxady = bdx * ady;
-    double det = adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady);
+    double det =
+        adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady);
     double perm = (fabs(bdxcdy) + fabs(cdxbdy)) * fabs(adz) +
                   (fabs(cdxady) + fabs(adxcdy)) * fabs(bdz) +
                   (fabs(adxbdy) + fabs(bdxady)) * fabs(cdz);
     if (!(perm <= DBL_MAX)) return NAN;
     double err = AS_O3D_ERRA * perm;
-    if (det > err || -det > err) {
-        AS_COUNT(orient3d_stage[0]);
-        return det;
-    }
+    if (fabs(det) > err) return det;
 
     /* Stage B: exact determinant of the rounded differences. */
     double p1, p0, q1, q0;
@@ -249,10 +267,14 @@ static double as_o3d_adapt(const double *a, const double *b, const double *c,
     }
 
     /* Stage C: first-order terms of the differences' rounding errors. */
-    double adxt = as_two_diff_tail(a[0], d[0], adx), bdxt = as_two_diff_tail(b[0], d[0], bdx);
-    double cdxt = as_two_diff_tail(c[0], d[0], cdx), adyt = as_two_diff_tail(a[1], d[1], ady);
-    double bdyt = as_two_diff_tail(b[1], d[1], bdy), cdyt = as_two_diff_tail(c[1], d[1], cdy);
-    double adzt = as_two_diff_tail(a[2], d[2], adz), bdzt = as_two_diff_tail(b[2], d[2], bdz);
+    double adxt = as_two_diff_tail(a[0], d[0], adx);
+    double bdxt = as_two_diff_tail(b[0], d[0], bdx);
+    double cdxt = as_two_diff_tail(c[0], d[0], cdx);
+    double adyt = as_two_diff_tail(a[1], d[1], ady);
+    double bdyt = as_two_diff_tail(b[1], d[1], bdy);
+    double cdyt = as_two_diff_tail(c[1], d[1], cdy);
+    double adzt = as_two_diff_tail(a[2], d[2], adz);
+    double bdzt = as_two_diff_tail(b[2], d[2], bdz);
     double cdzt = as_two_diff_tail(c[2], d[2], cdz);
     if (adxt == 0.0 && bdxt == 0.0 && cdxt == 0.0 && adyt == 0.0 && bdyt == 0.0 &&
         cdyt == 0.0 && adzt == 0.0 && bdzt == 0.0 && cdzt == 0.0) {
@@ -276,20 +298,22 @@ static double as_o3d_adapt(const double *a, const double *b, const double *c,
     return as_o3d_exact_value(a, b, c, d);
 }
 
+/* orient3d(a, b, c, d), adaptive exact (contract in predicates.h).
+ * design:
+ *  - differences from d, the plain determinant, the column sums sx, sy, sz of |diff|;
+ *  - |det| > c_o3d sx sy sz: return det (the common case);
+ *  - else as_o3d_adapt: stage A, B, C, D (file header). */
 double as_orient3d(const double *a, const double *b, const double *c, const double *d) {
     double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
     double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
     double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
     double det = as_o3d_det(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz);
-    double mx = as_max3(fabs(adx), fabs(bdx), fabs(cdx));
-    double my = as_max3(fabs(ady), fabs(bdy), fabs(cdy));
-    double mz = as_max3(fabs(adz), fabs(bdz), fabs(cdz));
-    double bound = AS_O3D_STATIC * (mx * my * mz);
+    double sx = fabs(adx) + fabs(bdx) + fabs(cdx);
+    double sy = fabs(ady) + fabs(bdy) + fabs(cdy);
+    double sz = fabs(adz) + fabs(bdz) + fabs(cdz);
+    double bound = AS_O3D_STATIC * (sx * sy * sz);
     AS_COUNT(orient3d_calls);
-    if (det > bound || -det > bound) {
-        AS_COUNT(orient3d_stage[0]);
-        return det;
-    }
+    if (fabs(det) > bound) return det; /* false for NaN: non-finite input goes on */
     return as_o3d_adapt(a, b, c, d);
 }
 
@@ -301,7 +325,7 @@ double as_orient3d(const double *a, const double *b, const double *c, const doub
  * along the lift column: dlift abc - clift dab + blift cda - alift bcd. */
 static inline double as_isp_det(double aex, double aey, double aez, double bex, double bey,
                                 double bez, double cex, double cey, double cez, double dex,
-                                double dey, double dez) {
+                                double dey, double dez, double *lmax) {
     double ab = aex * bey - bex * aey;
     double bc = bex * cey - cex * bey;
     double cd = cex * dey - dex * cey;
@@ -316,22 +340,34 @@ static inline double as_isp_det(double aex, double aey, double aez, double bex, 
     double blift = bex * bex + bey * bey + bez * bez;
     double clift = cex * cex + cey * cey + cez * cez;
     double dlift = dex * dex + dey * dey + dez * dez;
+    *lmax = as_max4(alift, blift, clift, dlift);
     return (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
 }
 
-/* out = s (x^2 + y^2 + z^2) t exactly, s = +1 or -1. t: tlen <= 96 components;
- * out: 12 tlen doubles. */
-static int as_lift_scale(int tlen, const double *t, double x, double y, double z, double s,
-                         double *out) {
-    double u1[192], ux[384], uy[384], uz[384], sxy[768];
-    int n1 = as_exp_scale(tlen, t, x, u1);
-    int nx = as_exp_scale(n1, u1, s * x, ux);
-    n1 = as_exp_scale(tlen, t, y, u1);
-    int ny = as_exp_scale(n1, u1, s * y, uy);
-    n1 = as_exp_scale(tlen, t, z, u1);
-    int nz = as_exp_scale(n1, u1, s * z, uz);
-    int nxy = as_exp_sum(nx, ux, ny, uy, sxy);
-    return as_exp_sum(nxy, sxy, nz, uz, out);
+/* h = x^2 + y^2 + z^2 exactly, compressed. h: 6 doubles. Returns the length. */
+static int as_lift_exact(const double *p, double h[6]) {
+    double sx[2], sy[2], sz[2], t[4];
+    as_two_square(p[0], &sx[1], &sx[0]);
+    as_two_square(p[1], &sy[1], &sy[0]);
+    as_two_square(p[2], &sz[1], &sz[0]);
+    int lt = as_exp_sum(2, sx, 2, sy, t);
+    return as_exp_compress(as_exp_sum(lt, t, 2, sz, h), h);
+}
+
+/* out = s o h exactly, compressed (o: olen <= 96 components, h: hlen <= 6, s = +-1).
+ * out: 12 olen doubles. Returns the length. */
+static int as_mul_lift(int olen, const double *o, int hlen, const double *h, double s,
+                       double *out) {
+    double t[192], acc[2][1152];
+    int cur = 0;
+    int alen = as_exp_scale(olen, o, s * h[0], acc[0]);
+    for (int j = 1; j < hlen; j++) {
+        int tl = as_exp_scale(olen, o, s * h[j], t);
+        alen = as_exp_sum(alen, acc[cur], tl, t, acc[1 - cur]);
+        cur = 1 - cur;
+    }
+    memcpy(out, acc[cur], (size_t)alen * sizeof(double));
+    return as_exp_compress(alen, out);
 }
 
 /* insphere(a, b, c, d, e) exactly, as the 5x5 determinant of the raw rows
@@ -344,20 +380,21 @@ static double as_isp_exact_value(const double *a, const double *b, const double 
     const double *p[5] = {a, b, c, d, e};
     double m2[10][4];
     double m3[10][24];
-    int l3[10];
+    int l2[10], l3[10];
     int idx2[5][5], idx3[5][5][5];
     int k = 0;
     for (int i = 0; i < 5; i++)
         for (int j = i + 1; j < 5; j++) {
-            as_minor2_raw(p[i], p[j], m2[k]);
+            l2[k] = as_minor2_raw(p[i], p[j], m2[k]);
             idx2[i][j] = k++;
         }
     k = 0;
     for (int i = 0; i < 5; i++)
         for (int j = i + 1; j < 5; j++)
             for (int l = j + 1; l < 5; l++) {
-                l3[k] = as_det3_raw(p[i], p[j], p[l], m2[idx2[j][l]], m2[idx2[i][l]],
-                                    m2[idx2[i][j]], m3[k]);
+                int jl = idx2[j][l], il = idx2[i][l], ij = idx2[i][j];
+                l3[k] = as_det3_raw(p[i], p[j], p[l], l2[jl], m2[jl], l2[il], m2[il],
+                                    l2[ij], m2[ij], m3[k]);
                 idx3[i][j][l] = k++;
             }
     /* Running sums alternate between big (lengths 1152, 3456, 5760) and small (2304,
@@ -378,13 +415,12 @@ static double as_isp_exact_value(const double *a, const double *b, const double 
         int ls1 = as_exp_sum(l3[k0], m3[k0], l3[k1], neg1, s1);
         int ls2 = as_exp_sum(l3[k2], m3[k2], l3[k3], neg3, s2);
         int lo = as_exp_compress(as_exp_sum(ls1, s1, ls2, s2, o), o);
-        double s = (m % 2 == 0) ? -1.0 : 1.0;
+        double s = (m % 2 == 0) ? -1.0 : 1.0, h[6];
+        int lh = as_lift_exact(p[m], h);
         if (m == 0) {
-            blen = as_lift_scale(lo, o, p[m][0], p[m][1], p[m][2], s, big);
-            blen = as_exp_compress(blen, big);
+            blen = as_mul_lift(lo, o, lh, h, s, big);
         } else {
-            int lt = as_lift_scale(lo, o, p[m][0], p[m][1], p[m][2], s, term);
-            lt = as_exp_compress(lt, term);
+            int lt = as_mul_lift(lo, o, lh, h, s, term);
             if (m % 2 == 1)
                 slen = as_exp_compress(as_exp_sum(blen, big, lt, term, small), small);
             else
@@ -396,9 +432,10 @@ static double as_isp_exact_value(const double *a, const double *b, const double 
 
 double as_insphere_fast(const double *a, const double *b, const double *c, const double *d,
                         const double *e) {
+    double unused;
     return as_isp_det(a[0] - e[0], a[1] - e[1], a[2] - e[2], b[0] - e[0], b[1] - e[1],
                       b[2] - e[2], c[0] - e[0], c[1] - e[1], c[2] - e[2], d[0] - e[0],
-                      d[1] - e[1], d[2] - e[2]);
+                      d[1] - e[1], d[2] - e[2], &unused);
 }
 
 double as_insphere_exact(const double *a, const double *b, const double *c, const double *d,
@@ -407,7 +444,8 @@ double as_insphere_exact(const double *a, const double *b, const double *c, cons
         if (!isfinite(a[k]) || !isfinite(b[k]) || !isfinite(c[k]) || !isfinite(d[k]) ||
             !isfinite(e[k]))
             return NAN;
-    return as_isp_exact_value(a, b, c, d, e);
+    double v = as_isp_exact_value(a, b, c, d, e);
+    return isfinite(v) ? v : NAN; /* overflow (outside the valid range) */
 }
 
 /* out[4] = p1 q2 - q1 p2 exactly from the rounded differences. */
@@ -430,8 +468,8 @@ static int as_det3_of(double pz, double qz, double rz, const double *qr, const d
 }
 
 /* Stages A-D of insphere (the semi-static filter failed). */
-static double as_isp_adapt(const double *a, const double *b, const double *c,
-                           const double *d, const double *e) {
+static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const double *c,
+                                       const double *d, const double *e) {
     double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
     double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
     double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
@@ -462,10 +500,7 @@ static double as_isp_adapt(const double *a, const double *b, const double *c,
     double perm = (dlift * pabc + clift * pdab) + (blift * pcda + alift * pbcd);
     if (!(perm <= DBL_MAX)) return NAN;
     double err = AS_ISP_ERRA * perm;
-    if (det > err || -det > err) {
-        AS_COUNT(insphere_stage[0]);
-        return det;
-    }
+    if (fabs(det) > err) return det;
 
     /* Stage B: exact determinant of the rounded differences. */
     {
@@ -485,10 +520,17 @@ static double as_isp_adapt(const double *a, const double *b, const double *c,
         int nbcd = as_det3_of(bez, cez, dez, xcd, xbd, xbc, xbcd);
         int ncda = as_det3_of(cez, -dez, aez, xda, xac, xcd, xcda);
         int ndab = as_det3_of(dez, -aez, bez, xab, xbd, xda, xdab);
-        int la = as_lift_scale(nbcd, xbcd, aex, aey, aez, -1.0, ta);
-        int lb = as_lift_scale(ncda, xcda, bex, bey, bez, 1.0, tb);
-        int lc = as_lift_scale(ndab, xdab, cex, cey, cez, -1.0, tc);
-        int ld = as_lift_scale(nabc, xabc, dex, dey, dez, 1.0, td);
+        const double ua[3] = {aex, aey, aez}, ub[3] = {bex, bey, bez};
+        const double uc[3] = {cex, cey, cez}, ud[3] = {dex, dey, dez};
+        double h[6];
+        int lh = as_lift_exact(ua, h);
+        int la = as_mul_lift(nbcd, xbcd, lh, h, -1.0, ta);
+        lh = as_lift_exact(ub, h);
+        int lb = as_mul_lift(ncda, xcda, lh, h, 1.0, tb);
+        lh = as_lift_exact(uc, h);
+        int lc = as_mul_lift(ndab, xdab, lh, h, -1.0, tc);
+        lh = as_lift_exact(ud, h);
+        int ld = as_mul_lift(nabc, xabc, lh, h, 1.0, td);
         int l1 = as_exp_sum(ld, td, lc, tc, s1);
         int l2 = as_exp_sum(lb, tb, la, ta, s2);
         int lf = as_exp_sum(l1, s1, l2, s2, fin);
@@ -501,12 +543,18 @@ static double as_isp_adapt(const double *a, const double *b, const double *c,
     }
 
     /* Stage C: first-order terms of the differences' rounding errors. */
-    double aext = as_two_diff_tail(a[0], e[0], aex), bext = as_two_diff_tail(b[0], e[0], bex);
-    double cext = as_two_diff_tail(c[0], e[0], cex), dext = as_two_diff_tail(d[0], e[0], dex);
-    double aeyt = as_two_diff_tail(a[1], e[1], aey), beyt = as_two_diff_tail(b[1], e[1], bey);
-    double ceyt = as_two_diff_tail(c[1], e[1], cey), deyt = as_two_diff_tail(d[1], e[1], dey);
-    double aezt = as_two_diff_tail(a[2], e[2], aez), bezt = as_two_diff_tail(b[2], e[2], bez);
-    double cezt = as_two_diff_tail(c[2], e[2], cez), dezt = as_two_diff_tail(d[2], e[2], dez);
+    double aext = as_two_diff_tail(a[0], e[0], aex);
+    double bext = as_two_diff_tail(b[0], e[0], bex);
+    double cext = as_two_diff_tail(c[0], e[0], cex);
+    double dext = as_two_diff_tail(d[0], e[0], dex);
+    double aeyt = as_two_diff_tail(a[1], e[1], aey);
+    double beyt = as_two_diff_tail(b[1], e[1], bey);
+    double ceyt = as_two_diff_tail(c[1], e[1], cey);
+    double deyt = as_two_diff_tail(d[1], e[1], dey);
+    double aezt = as_two_diff_tail(a[2], e[2], aez);
+    double bezt = as_two_diff_tail(b[2], e[2], bez);
+    double cezt = as_two_diff_tail(c[2], e[2], cez);
+    double dezt = as_two_diff_tail(d[2], e[2], dez);
     if (aext == 0.0 && bext == 0.0 && cext == 0.0 && dext == 0.0 && aeyt == 0.0 &&
         beyt == 0.0 && ceyt == 0.0 && deyt == 0.0 && aezt == 0.0 && bezt == 0.0 &&
         cezt == 0.0 && dezt == 0.0) {
@@ -522,10 +570,14 @@ static double as_isp_adapt(const double *a, const double *b, const double *c,
     double dac_ = (aext * cey + aex * ceyt) - (cext * aey + cex * aeyt);
     double dbd_ = (bext * dey + bex * deyt) - (dext * bey + dex * beyt);
     /* Differentials of the 3x3 minors (same shapes as abc, bcd, cda, dab). */
-    double dabc = ((aezt * bc + aez * dbc_) - (bezt * ac + bez * dac_)) + (cezt * ab + cez * dab_);
-    double dbcd = ((bezt * cd + bez * dcd_) - (cezt * bd + cez * dbd_)) + (dezt * bc + dez * dbc_);
-    double dcda = ((cezt * da + cez * dda_) + (dezt * ac + dez * dac_)) + (aezt * cd + aez * dcd_);
-    double ddab = ((dezt * ab + dez * dab_) + (aezt * bd + aez * dbd_)) + (bezt * da + bez * dda_);
+    double dabc =
+        ((aezt * bc + aez * dbc_) - (bezt * ac + bez * dac_)) + (cezt * ab + cez * dab_);
+    double dbcd =
+        ((bezt * cd + bez * dcd_) - (cezt * bd + cez * dbd_)) + (dezt * bc + dez * dbc_);
+    double dcda =
+        ((cezt * da + cez * dda_) + (dezt * ac + dez * dac_)) + (aezt * cd + aez * dcd_);
+    double ddab =
+        ((dezt * ab + dez * dab_) + (aezt * bd + aez * dbd_)) + (bezt * da + bez * dda_);
     /* Differentials of the lifts (times 1/2). */
     double dal = aex * aext + aey * aeyt + aez * aezt;
     double dbl = bex * bext + bey * beyt + bez * bezt;
@@ -543,21 +595,26 @@ static double as_isp_adapt(const double *a, const double *b, const double *c,
     return as_isp_exact_value(a, b, c, d, e);
 }
 
+/* insphere(a, b, c, d, e), adaptive exact (contract in predicates.h).
+ * design:
+ *  - differences from e, the plain 4x4 determinant with lifts, the column sums of
+ *    |diff| and the largest lift;
+ *  - |det| > c_isp sx sy sz lmax: return det (the common case);
+ *  - else as_isp_adapt: stage A, B, C, D (file header). */
 double as_insphere(const double *a, const double *b, const double *c, const double *d,
                    const double *e) {
     double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
     double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
     double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
-    double det = as_isp_det(aex, aey, aez, bex, bey, bez, cex, cey, cez, dex, dey, dez);
-    double mx = as_max4(fabs(aex), fabs(bex), fabs(cex), fabs(dex));
-    double my = as_max4(fabs(aey), fabs(bey), fabs(cey), fabs(dey));
-    double mz = as_max4(fabs(aez), fabs(bez), fabs(cez), fabs(dez));
-    double bound = AS_ISP_STATIC * ((mx * my * mz) * ((mx * mx + my * my) + mz * mz));
+    double lmax;
+    double det =
+        as_isp_det(aex, aey, aez, bex, bey, bez, cex, cey, cez, dex, dey, dez, &lmax);
+    double sx = (fabs(aex) + fabs(bex)) + (fabs(cex) + fabs(dex));
+    double sy = (fabs(aey) + fabs(bey)) + (fabs(cey) + fabs(dey));
+    double sz = (fabs(aez) + fabs(bez)) + (fabs(cez) + fabs(dez));
+    double bound = AS_ISP_STATIC * ((sx * sy * sz) * lmax);
     AS_COUNT(insphere_calls);
-    if (det > bound || -det > bound) {
-        AS_COUNT(insphere_stage[0]);
-        return det;
-    }
+    if (fabs(det) > bound) return det; /* false for NaN: non-finite input goes on */
     return as_isp_adapt(a, b, c, d, e);
 }
 
@@ -625,18 +682,20 @@ static int as_det2_exp(int l00, const double *e00, int l01, const double *e01, i
  * columns cols[0..m-2] (increasing, perturbed columns 0..3) plus the ones column.
  * Subtracting the last row and expanding along the ones column leaves the (m-1)x(m-1)
  * determinant of the row differences. */
-static int as_sos_minor_sign(const as_sos_rows *s, const int *rows, int m, const int *cols) {
+static int as_sos_minor_sign(const as_sos_rows *s, const int *rows, int m,
+                             const int *cols) {
     if (m == 1) return 1;
     int last = rows[m - 1], n = m - 1;
     double ent[3][3][12];
     int len[3][3];
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) len[i][j] = as_sos_entry(s, rows[i], last, cols[j], ent[i][j]);
+        for (int j = 0; j < n; j++)
+            len[i][j] = as_sos_entry(s, rows[i], last, cols[j], ent[i][j]);
     if (n == 1) return as_exp_sign(len[0][0], ent[0][0]);
     if (n == 2) {
         double d[96];
-        int l = as_det2_exp(len[0][0], ent[0][0], len[0][1], ent[0][1], len[1][0], ent[1][0],
-                            len[1][1], ent[1][1], d);
+        int l = as_det2_exp(len[0][0], ent[0][0], len[0][1], ent[0][1], len[1][0],
+                            ent[1][0], len[1][1], ent[1][1], d);
         return as_exp_sign(l, d);
     }
     /* n == 3: Laplace along row 0. */
@@ -701,6 +760,13 @@ static int as_sos_coord_phase(const as_sos_rows *s, const int order[5]) {
     return 1; /* unreachable: a full matching (mask < 2^12) has the minor [1] */
 }
 
+/* insphere with symbolic perturbation (contract in predicates.h; scheme in the file
+ * header).
+ * design:
+ *  - the adaptive insphere; its sign if nonzero;
+ *  - rank the rows by id; lift phase: for rank 0..4, the first nonzero
+ *    (-1)^(row+3) orient3d(the other four) decides;
+ *  - coordinate phase (all five coplanar): as_sos_coord_phase. */
 int as_insphere_sos(const double *a, const double *b, const double *c, const double *d,
                     const double *e, int64_t ia, int64_t ib, int64_t ic, int64_t id,
                     int64_t ie) {
@@ -740,13 +806,6 @@ int as_insphere_sos(const double *a, const double *b, const double *c, const dou
     }
 
     /* Coordinate phase: exact lifts first. */
-    for (int i = 0; i < 5; i++) {
-        double sx[2], sy[2], sz[2], t[4];
-        as_two_square(s.p[i][0], &sx[1], &sx[0]);
-        as_two_square(s.p[i][1], &sy[1], &sy[0]);
-        as_two_square(s.p[i][2], &sz[1], &sz[0]);
-        int lt = as_exp_sum(2, sx, 2, sy, t);
-        s.hlen[i] = as_exp_sum(lt, t, 2, sz, s.h[i]);
-    }
+    for (int i = 0; i < 5; i++) s.hlen[i] = as_lift_exact(s.p[i], s.h[i]);
     return as_sos_coord_phase(&s, order);
 }

@@ -47,9 +47,9 @@ static uint64_t mix64(uint64_t z) {
     return z ^ (z >> 31);
 }
 
-enum { HBITS = 16 };
+enum { HBITS = 21 };
 
-/* LSD radix sort of (key, idx) pairs by key, 8-bit digits, skipping digits on which all
+/* LSD radix sort of (key, idx) pairs by key, 8-bit digits, skipping the digits on which all
  * keys agree. k/ix hold the input and receive the output; k2/ix2 are scratch. Stable. */
 static void radix_sort(uint64_t *k, int32_t *ix, uint64_t *k2, int32_t *ix2, size_t n) {
     uint64_t all_or = 0, all_and = ~(uint64_t)0;
@@ -84,7 +84,16 @@ static void radix_sort(uint64_t *k, int32_t *ix, uint64_t *k2, int32_t *ix2, siz
     }
 }
 
-/* Shared by both sorts: brio == 0 sorts along the curve only. */
+/*
+ * Shared by both sorts: brio == 0 sorts along the curve only.
+ * design: Hilbert index of each point on a 2^21 grid over the bounding cube; BRIO round of
+ * each point from a hash (level 0, the last round, with probability 7/8, level 1 with
+ * 7/64, ...: rounds grow by 8, as CGAL's multiscale sort; the first round holds about 64
+ * points); counting sort by round, then a radix sort of the Hilbert keys inside each round
+ * (stable: ties keep the input order). Ratio 1/8 rather than 1/2: most points go in one
+ * coherent sweep, so the walks are shorter (a torus sample: 24 steps per point instead of
+ * 40) and the tets they touch are still in cache.
+ */
 static anistar_status spatial_sort(anistar_context *ctx, const double *pts, int32_t n,
                                    int brio, uint64_t seed, int32_t *order) {
     if (n < 0) return as_fail(ctx, ANISTAR_EINVAL, "spatial sort: negative count %d", (int)n);
@@ -106,44 +115,57 @@ static anistar_status spatial_sort(anistar_context *ctx, const double *pts, int3
         if (hi[a] - lo[a] > side) side = hi[a] - lo[a];
     const double cells = (double)((1u << HBITS) - 1);
     double scale = side > 0 ? cells / side : 0;
-    if (!isfinite(scale)) scale = 0; /* side subnormal: every point in one cell */
+    if (!isfinite(scale)) scale = 0; /* a subnormal extent: every point in one cell */
 
     size_t nn = (size_t)n;
-    uint64_t *keys = as_alloc_array(ctx, 2 * nn, sizeof *keys);
+    uint64_t *keys = as_alloc_array(ctx, 3 * nn, sizeof *keys); /* keys, scratch, round keys */
     int32_t *tmp = as_alloc_array(ctx, nn, sizeof *tmp);
     if (!keys || !tmp) {
-        as_free(ctx, keys, 2 * nn * sizeof *keys);
+        as_free(ctx, keys, 3 * nn * sizeof *keys);
         as_free(ctx, tmp, nn * sizeof *tmp);
         return as_fail(ctx, ANISTAR_ENOMEM, "spatial sort: out of memory for %d points",
                        (int)n);
     }
-    /* The first BRIO round gets about 64 points: levels 0 .. maxlevel, level 0 (the last
-     * round) with probability 1/2. */
     int maxlevel = 0;
-    while (maxlevel < 30 && ((int64_t)64 << (maxlevel + 1)) <= (int64_t)n) maxlevel++;
-    for (int32_t i = 0; i < n; i++) {
+    if (brio)
+        while (maxlevel < 10 && ((int64_t)64 << (3 * (maxlevel + 1))) <= (int64_t)n) maxlevel++;
+    size_t start[33];
+    memset(start, 0, sizeof start);
+    uint64_t *hk = keys + 2 * nn;
+    for (size_t i = 0; i < nn; i++) {
         uint32_t c[3];
         for (int a = 0; a < 3; a++) {
-            double u = (pts[3 * (size_t)i + (size_t)a] - lo[a]) * scale;
+            double u = (pts[3 * i + (size_t)a] - lo[a]) * scale;
             if (!(u >= 0)) u = 0;
             if (u > cells) u = cells;
             c[a] = (uint32_t)u;
         }
-        uint64_t key = as_hilbert3_index(c[0], c[1], c[2], HBITS);
+        int round = 0;
         if (brio) {
-            uint64_t h = mix64(seed ^ mix64((uint64_t)(uint32_t)i));
+            uint64_t h = mix64(seed ^ mix64((uint64_t)i));
             int level = 0;
-            while (level < maxlevel && (h & 1u)) {
+            while (level < maxlevel && (h & 7u) == 0) {
                 level++;
-                h >>= 1;
+                h >>= 3;
             }
-            key |= (uint64_t)(maxlevel - level) << (3 * HBITS);
+            round = maxlevel - level;
         }
-        keys[i] = key;
-        order[i] = i;
+        hk[i] = as_hilbert3_index(c[0], c[1], c[2], HBITS);
+        tmp[i] = round;
+        start[round + 1]++;
     }
-    radix_sort(keys, order, keys + nn, tmp, nn);
-    as_free(ctx, keys, 2 * nn * sizeof *keys);
+    for (int r = 0; r <= maxlevel; r++) start[r + 1] += start[r];
+    size_t pos[32];
+    memcpy(pos, start, sizeof pos);
+    for (size_t i = 0; i < nn; i++) {
+        size_t q = pos[tmp[i]]++;
+        order[q] = (int32_t)i;
+        keys[q] = hk[i];
+    }
+    for (int r = 0; r <= maxlevel; r++)
+        radix_sort(keys + start[r], order + start[r], keys + nn + start[r], tmp + start[r],
+                   start[r + 1] - start[r]);
+    as_free(ctx, keys, 3 * nn * sizeof *keys);
     as_free(ctx, tmp, nn * sizeof *tmp);
     return ANISTAR_OK;
 }

@@ -7,6 +7,7 @@
 #include "io/meshio.h"
 
 #include <errno.h>
+#include <sys/stat.h>
 #include <locale.h>
 #include <math.h>
 #include <stdarg.h>
@@ -810,6 +811,10 @@ anistar_status as_wfile_open(anistar_context *ctx, as_wfile *w, const char *path
     if (n >= sizeof w->dp) n = sizeof w->dp - 1;
     memcpy(w->dp, dp, n);
     w->dp[n] = '\0';
+    /* Remember whether we create the file: only then may a failure remove it (the path
+     * may name a device such as /dev/full, or a file or link the caller cares about). */
+    struct stat sb;
+    w->created = lstat(path, &sb) != 0 && errno == ENOENT;
     errno = 0;
     w->f = fopen(path, "wb");
     if (!w->f)
@@ -862,6 +867,12 @@ void as_wfile_double(as_wfile *w, double x, char sep) {
     as_wfile_write(w, buf, (size_t)n);
 }
 
+void as_wfile_abort(as_wfile *w) {
+    if (w->f) fclose(w->f);
+    w->f = NULL;
+    if (w->created) remove(w->path);
+}
+
 anistar_status as_wfile_close(as_wfile *w) {
     if (!w->f) return as_fail(w->ctx, ANISTAR_EIO, "cannot write '%s'", w->path);
     errno = 0;
@@ -871,7 +882,7 @@ anistar_status as_wfile_close(as_wfile *w) {
     w->f = NULL;
     if (w->err) {
         int e = w->err;
-        remove(w->path);
+        if (w->created) remove(w->path);
         return as_fail(w->ctx, ANISTAR_EIO, "cannot write '%s': %s", w->path,
                        e > 0 ? strerror(e) : "write error");
     }

@@ -361,10 +361,15 @@ typedef struct as_wfile {
     FILE *f;
     int err;     /* errno of the first failure; -1 failure without errno; 0 none */
     char dp[8];  /* the locale's decimal point, replaced by '.' in formatted numbers */
+    int created; /* 1 if path did not exist before as_wfile_open (then a failed write may
+                    remove it; a pre-existing file, device or link is never removed) */
 } as_wfile;
 
 /* Create/truncate path for writing. EIO "cannot create 'path': ...". */
 anistar_status as_wfile_open(anistar_context *ctx, as_wfile *w, const char *path);
+/* Give up on a file opened by as_wfile_open: close it and remove it if (and only if) this
+ * writer created it. */
+void as_wfile_abort(as_wfile *w);
 void as_wfile_write(as_wfile *w, const void *p, size_t n);
 void as_wfile_puts(as_wfile *w, const char *s);
 void as_wfile_printf(as_wfile *w, const char *fmt, ...) AS_PRINTF(2, 3);

@@ -5,6 +5,7 @@
 #include "surface/field.h"
 
 #include "geom/linalg.h"
+#include "io/meshio.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -90,7 +91,17 @@ int as_field_check_tensor(double m[6]) {
 
 /* ---- SPEC parsing --------------------------------------------------------------- */
 
-enum { OPT_EPS = 1, OPT_EN = 2, OPT_POWER = 4, OPT_PHI = 8, OPT_LAMBDA = 16, OPT_H = 32 };
+enum {
+    OPT_EPS = 1,
+    OPT_EN = 2,
+    OPT_POWER = 4,
+    OPT_PHI = 8,
+    OPT_LAMBDA = 16,
+    OPT_H = 32,
+    OPT_DEGREE = 64, /* triangle meshes */
+    OPT_K = 128,
+    OPT_RB = 256
+};
 
 typedef struct fl_name {
     const char *name;
@@ -98,16 +109,18 @@ typedef struct fl_name {
     int arg;  /* 1: NAME:ARG required, 0: no ARG */
     int opts; /* allowed options */
     const char *optlist;
+    const char *meshopts; /* options for triangle-mesh surfaces only, or "" */
 } fl_name;
 
 static const fl_name fl_names[] = {
-    {"euclidean", AS_FIELD_UNIFORM, 0, 0, "none"},
-    {"uniform", AS_FIELD_UNIFORM, 0, OPT_H, "h"},
-    {"curvature", AS_FIELD_CURVATURE, 0, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power"},
-    {"shock", AS_FIELD_GRADIENT, 0, OPT_LAMBDA | OPT_PHI | OPT_EN, "lambda, phi, en"},
-    {"gradient", AS_FIELD_GRADIENT, 1, OPT_PHI | OPT_EN, "phi, en"},
-    {"hessian", AS_FIELD_HESSIAN, 1, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power"},
-    {"sol", AS_FIELD_SOL, 1, 0, "none"},
+    {"euclidean", AS_FIELD_UNIFORM, 0, 0, "none", ""},
+    {"uniform", AS_FIELD_UNIFORM, 0, OPT_H, "h", ""},
+    {"curvature", AS_FIELD_CURVATURE, 0, OPT_EPS | OPT_EN | OPT_POWER | OPT_DEGREE | OPT_K | OPT_RB,
+     "eps, en, power", "degree, k, rb"},
+    {"shock", AS_FIELD_GRADIENT, 0, OPT_LAMBDA | OPT_PHI | OPT_EN, "lambda, phi, en", ""},
+    {"gradient", AS_FIELD_GRADIENT, 1, OPT_PHI | OPT_EN, "phi, en", ""},
+    {"hessian", AS_FIELD_HESSIAN, 1, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power", ""},
+    {"sol", AS_FIELD_SOL, 1, OPT_RB, "rb", ""},
 };
 #define FL_NAMES (sizeof fl_names / sizeof fl_names[0])
 
@@ -154,15 +167,17 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     static const struct {
         const char *key;
         int bit;
-    } keys[] = {{"eps", OPT_EPS}, {"en", OPT_EN},         {"power", OPT_POWER},
-                {"phi", OPT_PHI}, {"lambda", OPT_LAMBDA}, {"h", OPT_H}};
+    } keys[] = {{"eps", OPT_EPS},       {"en", OPT_EN},         {"power", OPT_POWER},
+                {"phi", OPT_PHI},       {"lambda", OPT_LAMBDA}, {"h", OPT_H},
+                {"degree", OPT_DEGREE}, {"k", OPT_K},           {"rb", OPT_RB}};
     int bit = 0;
     for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
         if (strlen(keys[i].key) == (size_t)(ke - kb) && !strncmp(keys[i].key, kb, (size_t)(ke - kb)))
             bit = keys[i].bit;
     if (!(bit & nm->opts))
-        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': unknown option '%.*s' (options: %s)",
-                       nm->name, clip_len((size_t)(ke - kb)), kb, nm->optlist);
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': unknown option '%.*s' (options: %s)%s%s",
+                       nm->name, clip_len((size_t)(ke - kb)), kb, nm->optlist,
+                       nm->meshopts[0] ? ", and on triangle-mesh surfaces " : "", nm->meshopts);
     char buf[64];
     size_t vl = (size_t)(ve - vb);
     double v = 0;
@@ -187,6 +202,9 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     case OPT_POWER: dst = &sp->power; has = &sp->has_power; break;
     case OPT_PHI: dst = &sp->phi; has = &sp->has_phi; positive = 0; break;
     case OPT_LAMBDA: dst = &sp->lambda; has = &sp->has_lambda; break;
+    case OPT_DEGREE: dst = &sp->degree; has = &sp->has_degree; break;
+    case OPT_K: dst = &sp->k; has = &sp->has_k; break;
+    case OPT_RB: dst = &sp->rb; has = &sp->has_rb; break;
     default: dst = &sp->h; has = &sp->has_h; break;
     }
     if (*has)
@@ -195,6 +213,13 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     if (positive ? !(v > 0) : !(v >= 0))
         return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s must be %s, got %g",
                        nm->name, clip_len((size_t)(ke - kb)), kb, positive ? "> 0" : ">= 0", v);
+    if (bit == OPT_DEGREE && !(v == 2 || v == 3 || v == 4))
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option degree must be 2, 3 or 4, got %g",
+                       nm->name, v);
+    if (bit == OPT_K && !(v == floor(v) && v <= AS_JET_MAX_POINTS))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "metric '%s': option k must be an integer in [1, %d], got %g", nm->name,
+                       AS_JET_MAX_POINTS, v);
     *has = 1;
     *dst = v;
     return ANISTAR_OK;
@@ -390,6 +415,13 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
                              double m[6]) {
     if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
         return as_fail(ctx, ANISTAR_EINVAL, "metric: point is not finite");
+    if (fl->blend) { /* curvature and sol on triangle meshes */
+        anistar_status st = as_blend_eval(ctx, fl->blend, p, m);
+        if (st) return st;
+        if (as_field_check_tensor(m))
+            return fail_at(ctx, "the blended tensor is not positive definite", p);
+        return ANISTAR_OK;
+    }
     switch (fl->kind) {
     case AS_FIELD_UNIFORM:
         memcpy(m, fl->m, 6 * sizeof(double));
@@ -452,6 +484,7 @@ void as_field_free(as_field *fl) {
     if (!fl) return;
     anistar_context *ctx = fl->ctx;
     as_expr_free(ctx, fl->expr);
+    as_blend_free(ctx, fl->blend);
     as_free(ctx, fl, sizeof *fl);
 }
 
@@ -524,19 +557,138 @@ static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_e
     return st;
 }
 
+/*
+ * The per-vertex tensors of a curvature or sol field on a triangle-mesh surface, blended
+ * (paper 5.2.3; see field.h for the conventions).
+ * design:
+ *   1. curvature: the surface's own degree-2 jets (AS_JET_K2) or new ones for other
+ *      degree/k; e_i = max(eps, |k_i|)^power; e_n = option or max_v e_1(v) (paper 5.4);
+ *      M(v) = U diag(e^2) U^T, U = [d0, d1, n];
+ *      sol: the file's tensors, count checked against the input's vertices, mapped past
+ *      dropped (unused) vertices, each validated;
+ *   2. r_B = option rb or the mean distance to the k nearest vertices (paper's default);
+ *   3. as_blend_create over the surface's kd-tree of vertices.
+ */
+static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
+                                    const as_field_spec *sp, as_field *fl) {
+    as_mesh_info mi;
+    as_mesh_surface_info(s, &mi);
+    int degree = sp->has_degree ? (int)sp->degree : 2;
+    size_t k = sp->has_k ? (size_t)sp->k : (degree == 2 ? AS_JET_K2 : AS_JET_K4);
+    if (k < (size_t)as_jet_coef_count(degree))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "metric '%s': k = %zu is too small for degree %d (at least %d)", sp->name,
+                       k, degree, as_jet_coef_count(degree));
+    size_t nv = mi.nv;
+    double *tens = as_alloc_array(ctx, nv, 6 * sizeof(double));
+    double *own = NULL;
+    double *file = NULL;
+    size_t nfile = 0;
+    anistar_status st = ANISTAR_OK;
+    if (!tens) {
+        st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory");
+        goto done;
+    }
+    if (sp->kind == AS_FIELD_CURVATURE) {
+        const double *vj = mi.vjet;
+        if (degree != 2 || k != AS_JET_K2) {
+            own = as_alloc_array(ctx, nv, AS_MESH_VJET * sizeof(double));
+            if (!own) {
+                st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory");
+                goto done;
+            }
+            st = as_mesh_surface_jets(ctx, s, degree, k, own);
+            if (st) goto done;
+            vj = own;
+        }
+        fl->eps = sp->has_eps ? sp->eps : 1.0 / s->radius;
+        fl->power = sp->has_power ? sp->power : 1.0;
+        double en = 0;
+        for (size_t v = 0; v < nv; v++) {
+            const double *J = vj + AS_MESH_VJET * v;
+            double e1 = pow(fmax(fl->eps, fabs(J[3])), fl->power);
+            double e2 = pow(fmax(fl->eps, fabs(J[4])), fl->power);
+            if (fl_usable(e1) && fl_usable(e2)) en = fmax(en, fmax(e1, e2));
+        }
+        fl->en = sp->has_en ? sp->en : (en > 0 ? en : 1.0);
+        for (size_t v = 0; v < nv; v++) {
+            const double *J = vj + AS_MESH_VJET * v;
+            double u[9], e[3];
+            memcpy(u, J + 5, 6 * sizeof(double));
+            memcpy(u + 6, J, 3 * sizeof(double));
+            e[0] = pow(fmax(fl->eps, fabs(J[3])), fl->power);
+            e[1] = pow(fmax(fl->eps, fabs(J[4])), fl->power);
+            e[2] = fl->en;
+            if (!fl_usable(e[0]) || !fl_usable(e[1])) e[0] = e[1] = e[2];
+            as_field_tensor(u, e, tens + 6 * v);
+        }
+    } else {
+        st = as_sol_read(ctx, sp->path, &nfile, &file);
+        if (st) goto done;
+        if (nfile != mi.nv_in) {
+            st = as_fail(ctx, ANISTAR_EFORMAT,
+                         "%s: %zu tensors for a mesh of %zu vertices (one per vertex needed)",
+                         sp->path, nfile, mi.nv_in);
+            goto done;
+        }
+        for (size_t i = 0; i < nfile; i++) {
+            double t[6];
+            memcpy(t, file + 6 * i, sizeof t);
+            if (as_field_check_tensor(t)) {
+                st = as_fail(ctx, ANISTAR_EFORMAT,
+                             "%s: the tensor of vertex %zu (%g %g %g %g %g %g) is not positive "
+                             "definite",
+                             sp->path, i + 1, t[0], t[1], t[2], t[3], t[4], t[5]);
+                goto done;
+            }
+            int32_t v = mi.vmap ? mi.vmap[i] : (int32_t)i;
+            if (v >= 0) memcpy(tens + 6 * (size_t)v, t, sizeof t);
+        }
+    }
+    double rb = sp->has_rb ? sp->rb : 0;
+    if (!sp->has_rb) st = as_blend_default_radius(ctx, mi.kd, mi.xyz, nv, k, &rb);
+    if (!st) st = as_blend_create(ctx, mi.kd, mi.xyz, nv, tens, rb, &fl->blend);
+done:
+    as_free(ctx, tens, nv * 6 * sizeof(double));
+    as_free(ctx, own, nv * AS_MESH_VJET * sizeof(double));
+    as_free(ctx, file, nfile * 6 * sizeof(double));
+    return st;
+}
+
 anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
                                   as_field **out) {
     *out = NULL;
     as_field_spec sp;
     anistar_status st = as_field_spec_parse(ctx, spec, &sp);
     if (st) return st;
-    if (sp.kind == AS_FIELD_SOL) {
+    int mesh = s && as_surface_is_mesh(s);
+    if (sp.kind == AS_FIELD_SOL && !mesh) {
         st = as_fail(ctx, ANISTAR_EINVAL,
                      "metric 'sol:%s': per-vertex tensors (.sol) need a triangle-mesh "
-                     "surface; not supported yet for implicit surfaces",
-                     sp.path);
+                     "surface; not supported yet for implicit surfaces (this one: '%s')",
+                     sp.path, s ? s->ops->kind : "none");
         as_field_spec_clear(ctx, &sp);
         return st;
+    }
+    if (!mesh && (sp.has_degree || sp.has_k || sp.has_rb)) {
+        st = as_fail(ctx, ANISTAR_EINVAL,
+                     "metric '%s': options degree, k and rb apply to triangle-mesh surfaces "
+                     "only (this one: '%s')",
+                     sp.name, s ? s->ops->kind : "none");
+        as_field_spec_clear(ctx, &sp);
+        return st;
+    }
+    if (mesh && (sp.kind == AS_FIELD_SOL || sp.kind == AS_FIELD_CURVATURE)) {
+        as_field *fl;
+        st = fl_new(ctx, s, sp.kind, &fl);
+        if (!st) st = fl_mesh_blend(ctx, s, &sp, fl);
+        as_field_spec_clear(ctx, &sp);
+        if (st) {
+            as_field_free(fl);
+            return st;
+        }
+        *out = fl;
+        return ANISTAR_OK;
     }
     if (sp.kind == AS_FIELD_UNIFORM) {
         double h = sp.has_h ? sp.h : 1.0, v = 1.0 / (h * h);

@@ -29,6 +29,22 @@
  * Points off S: the field is evaluated at p as given, with the normal and curvatures of
  * the level set of f through p (project first for the value on S).
  *
+ * Triangle-mesh surfaces (paper 5.2.3): curvature and sol:FILE are per-vertex tensors
+ * M(v) blended by Gaussian weights (as_blend_eval, jet.h) with radius r_B:
+ *  - curvature: the jet of degree `degree` (2 by default; 3 or 4) fitted on the k nearest
+ *    vertices (default AS_JET_K2 = 16 for degree 2, AS_JET_K4 = 32 for 3 and 4; at most
+ *    AS_JET_MAX_POINTS), oriented outward, gives k_i and u_i at each vertex;
+ *    e_i = max(eps, |k_i|)^power as above; e_n defaults to the largest e_1 over the
+ *    vertices (paper 5.4);
+ *  - sol:FILE: one tensor per vertex of the input mesh (Medit .sol, io/meshio.h), the
+ *    count must equal the input's vertex count (EFORMAT otherwise), each finite and SPD
+ *    (EFORMAT naming the vertex); blended the same way (so a vertex's own tensor is not
+ *    reproduced exactly unless its neighbours agree; a constant field is);
+ *  - r_B defaults to the paper's: the mean over the vertices of their mean distance to
+ *    their k nearest other vertices; option rb=R sets it.
+ * A blended field is continuous everywhere, SPD, and defined off S too (it only looks at
+ * distances to the vertices).
+ *
  * A field keeps a pointer to its surface (not owned): the surface must outlive it.
  * A field is immutable after creation; evaluation is safe from several threads at once
  * (custom callbacks permitting), each thread passing its own context.
@@ -38,6 +54,7 @@
 
 #include "core.h"
 #include "surface/expr.h"
+#include "surface/jet.h"
 #include "surface/surface.h"
 
 #define AS_FIELD_MAX_ANISOTROPY 1e6
@@ -66,6 +83,8 @@ typedef struct as_field_spec {
     const char *name; /* static: "euclidean", "uniform", "curvature", "shock", ... */
     double eps, en, power, phi, lambda, h;
     int has_eps, has_en, has_power, has_phi, has_lambda, has_h;
+    double degree, k, rb; /* curvature on meshes (degree, k, rb) and sol (rb) */
+    int has_degree, has_k, has_rb;
     as_expr *expr; /* gradient, hessian, shock (owned) */
     char *path;    /* sol (owned, path_size bytes) */
     size_t path_size;
@@ -73,13 +92,14 @@ typedef struct as_field_spec {
 
 /*
  * Parse a SPEC (the command line's --metric):
- *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]
+ *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P][,degree=D][,k=K][,rb=R]
  *   | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
- *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE
+ *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE[,rb=R]
  * Options follow the name (or the expression) after commas at parenthesis depth 0, as
  * NAME=VALUE with a finite number; spaces around names and values are allowed.
  * Returns EINVAL for an unknown metric name or option, a repeated option, a bad value
- * (eps, en, h, lambda, power > 0, phi >= 0) or a missing expression; EFORMAT for a
+ * (eps, en, h, lambda, power, rb > 0, phi >= 0, degree 2, 3 or 4, k an integer >= 1;
+ * degree, k and rb are for triangle-mesh surfaces) or a missing expression; EFORMAT for a
  * malformed expression or unbalanced parentheses; ENOMEM. Messages name the culprit.
  */
 anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out);
@@ -94,12 +114,16 @@ struct anistar_metric {
     void *user;
     as_expr *expr;           /* gradient, hessian (owned) */
     double eps, power, phi, en;
+    as_blend *blend;         /* curvature and sol on triangle meshes (owned) */
 };
 
 /* A field parsed from spec on surface s (which must outlive it). Computes the default e_n
  * (and hessian's default eps) from the initial sample of s, so it may return the
- * sampler's errors (ENOSURFACE, EINVAL). sol:FILE returns EINVAL (per-vertex tensors need
- * a triangle-mesh surface: not supported yet for implicit surfaces). */
+ * sampler's errors (ENOSURFACE, EINVAL). sol:FILE needs a triangle-mesh surface (EINVAL
+ * otherwise) and returns the .sol reader's errors (EIO, EFORMAT) and EFORMAT for a
+ * vertex-count mismatch or a tensor that is not SPD; degree, k, rb on a surface that is
+ * not a triangle mesh: EINVAL; k outside [coefficients(degree), AS_JET_MAX_POINTS]:
+ * EINVAL. */
 anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
                                   as_field **out);
 /* A constant tensor (validated: finite, SPD; anisotropy clamped). s may be NULL. */

@@ -29,6 +29,8 @@
 #define ANISTAR_SURFACE_H
 
 #include "core.h"
+#include "geom/bvh.h"
+#include "geom/kdtree.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -58,7 +60,7 @@ typedef struct as_point_sample {
 } as_point_sample;
 
 typedef struct as_surface_ops {
-    const char *kind; /* "implicit", "expression", later "mesh", "image" */
+    const char *kind; /* "implicit", "expression", "mesh" (mesh.c), "image" (image.c) */
     /*
      * f at p; with order >= 1 also grad f in g, with order 2 also the Hessian in h
      * (m11 m12 m13 m22 m23 m33). NULL for kinds not given by a function (triangle
@@ -273,5 +275,86 @@ anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_su
 /* The i-th built-in: name and a one-line description (formula, parameters with
  * defaults, bounding radius, topology). Returns 0, or -1 past the last one. */
 int as_implicit_builtin_info(size_t i, const char **name, const char **description);
+
+/* ---- triangle meshes (mesh.c) ------------------------------------------------------ */
+
+/*
+ * A closed triangle-mesh surface from arrays (nv vertices xyz, nt triangles tri, 0-based;
+ * both copied; name is used in messages, NULL for "triangle mesh").
+ * Validation: coordinates finite and 0 or of magnitude in [1e-100, 1e100], indices in
+ * range (EINVAL); the mesh must be a closed, orientable 2-manifold without zero-area
+ * triangles (EFORMAT naming every problem and its count, e.g. "open.off: not a closed
+ * 2-manifold: 12 border edges"). Triangles are reoriented consistently, every component
+ * outward (a component nested inside an odd number of others faces inward: a cavity).
+ * Vertices of no triangle are dropped (as_mesh_info.vmap maps input indices).
+ * Self-intersections are not detected: the inside is then the region of odd ray parity.
+ * See mesh.c for what each oracle operation answers. ENOMEM.
+ */
+anistar_status as_mesh_surface_create(anistar_context *ctx, const char *name, const double *xyz,
+                                      size_t nv, const int32_t *tri, size_t nt,
+                                      as_surface **out);
+/* The same from a file (.off .obj .ply .stl .mesh, io/meshio.h); EIO, EFORMAT. */
+anistar_status as_mesh_surface_read(anistar_context *ctx, const char *path, as_surface **out);
+/* 1 iff s is a triangle-mesh surface. */
+int as_surface_is_mesh(const as_surface *s);
+
+/* What a mesh surface holds (borrowed pointers, valid while the surface lives). */
+typedef struct as_mesh_info {
+    size_t nv, nt;
+    const double *xyz;   /* 3 nv (after dropping unused vertices) */
+    const int32_t *tri;  /* 3 nt, oriented outward */
+    const double *vjet;  /* AS_MESH_VJET nv: normal n[3], curvatures k[2], directions d[6]
+                            of the degree-2 jet at each vertex (AS_JET_K2 neighbours) */
+    const as_kdtree *kd; /* the vertices, ids 0..nv-1 */
+    const as_bvh *bvh;   /* the triangles, ids 0..nt-1 */
+    size_t nv_in;        /* vertices of the input */
+    const int32_t *vmap; /* nv_in: input vertex -> vertex or -1; NULL when the identity */
+    size_t ncomponents;
+    double spacing;      /* mean edge length */
+} as_mesh_info;
+#define AS_MESH_VJET 11
+/* Fill info (s must be a mesh surface). */
+void as_mesh_surface_info(const as_surface *s, as_mesh_info *info);
+/* Per-vertex jets of the given degree (2..4) on the k nearest vertices (k in
+ * [coefficients(degree), AS_JET_MAX_POINTS]), AS_MESH_VJET doubles per vertex into out
+ * (nv of them), oriented outward. EINVAL for a bad degree or k, or a non-mesh surface. */
+anistar_status as_mesh_surface_jets(anistar_context *ctx, const as_surface *s, int degree,
+                                    size_t k, double *out);
+/* The signed distance d from p to the mesh (negative inside, exact sign, distance to the
+ * exact closest point) and its gradient g (may be NULL): the unit vector from the closest
+ * point (outward), the surface normal when p is on the mesh. */
+anistar_status as_mesh_surface_signed_distance(anistar_context *ctx, const as_surface *s,
+                                               const double p[3], double *d, double g[3]);
+
+/* ---- 3D images (image.c) ------------------------------------------------------------ */
+
+struct as_image;
+
+/*
+ * The isosurface of a 3D image (io/image_io.h; its voxels are prefiltered into a copy:
+ * img may be freed afterwards): f = iso - value for inside = +1 (the inside is where the
+ * B-spline reconstruction exceeds iso), f = value - iso for inside = -1. Outside the grid
+ * the reconstruction tends to the background, the smallest (inside = +1) or largest
+ * (inside = -1) voxel value, so S is closed even where the object touches the border.
+ * name is used in messages (NULL: "image"). Returns EINVAL (bad inside, non-finite iso,
+ * NULL image), ENOSURFACE (iso not strictly between the smallest and largest voxel
+ * values), ENOMEM, and as_bspline_create's errors.
+ */
+anistar_status as_image_surface_create(anistar_context *ctx, const char *name,
+                                       const struct as_image *img, double iso, int inside,
+                                       as_surface **out);
+/* The same from a file (.inr .nrrd .nhdr .mha .mhd): as_image_read's errors (EIO...). */
+anistar_status as_image_surface_read(anistar_context *ctx, const char *path, double iso,
+                                     int inside, as_surface **out);
+/* The same from voxels as doubles, x fastest (voxel (i,j,k) = voxels[i + nx (j + ny k)]),
+ * dims nx ny nz, spacing (NULL: 1 1 1) and origin (NULL: 0 0 0, the world position of
+ * voxel (0,0,0)'s center), axis-aligned. The voxels are copied. EINVAL for a zero
+ * dimension, a bad spacing or origin, a non-finite voxel. */
+anistar_status as_image_surface_from_array(anistar_context *ctx, const double *voxels,
+                                           const size_t dims[3], const double spacing[3],
+                                           const double origin[3], double iso, int inside,
+                                           as_surface **out);
+/* 1 iff s is an image surface. */
+int as_surface_is_image(const as_surface *s);
 
 #endif /* ANISTAR_SURFACE_H */

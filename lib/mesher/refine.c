@@ -1,0 +1,582 @@
+/*
+ * refine.c — rules 1-3 with priorities, lazy queues, Pick_valid, initial points, limits,
+ * progress (DESIGN.md 4.5, paper 4.1, 4.2, 5.1, 5.3). See refine.h and mesher.h.
+ */
+#include "mesher/refine.h"
+
+#include <math.h>
+#include <string.h>
+#include <time.h>
+
+void as_mesher_params_default(as_mesher_params *p) {
+    memset(p, 0, sizeof *p);
+    p->r0 = 0.1;
+    p->gamma0 = 1.5;
+    p->rho0 = 3.0;
+    p->beta = 2.5;
+    p->delta = 0.3;
+    p->approx = 0;
+    p->max_seconds = 0;
+    p->max_vertices = 0;
+    p->seed = 0;
+    p->pick_tries = 60;
+}
+
+/* ---- queues ------------------------------------------------------------------------- */
+
+static int q_before(const as_qentry *a, const as_qentry *b) {
+    if (a->pri != b->pri) return a->pri > b->pri;
+    if (a->key != b->key) return a->key < b->key;
+    return a->star < b->star;
+}
+
+anistar_status as_queue_push(anistar_context *ctx, as_queue *q, as_qentry e) {
+    if (q->n == q->cap && as_grow(ctx, (void **)&q->a, &q->cap, q->n + 1, sizeof *q->a))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (queue)");
+    size_t i = q->n++;
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (!q_before(&e, &q->a[p])) break;
+        q->a[i] = q->a[p];
+        i = p;
+    }
+    q->a[i] = e;
+    return ANISTAR_OK;
+}
+
+int as_queue_pop(as_queue *q, as_qentry *e) {
+    if (q->n == 0) return 0;
+    *e = q->a[0];
+    as_qentry x = q->a[--q->n];
+    size_t i = 0, n = q->n;
+    for (;;) {
+        size_t l = 2 * i + 1, r = l + 1, m = i;
+        const as_qentry *best = &x;
+        if (l < n && q_before(&q->a[l], best)) {
+            m = l;
+            best = &q->a[l];
+        }
+        if (r < n && q_before(&q->a[r], best)) m = r;
+        if (m == i) break;
+        q->a[i] = q->a[m];
+        i = m;
+    }
+    if (n) q->a[i] = x;
+    return 1;
+}
+
+void as_queue_free(anistar_context *ctx, as_queue *q) {
+    as_free(ctx, q->a, q->cap * sizeof *q->a);
+    memset(q, 0, sizeof *q);
+}
+
+/* ---- rule tests --------------------------------------------------------------------- */
+
+double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
+                          const as_rfacet *f, anistar_status *err) {
+    (void)v;
+    double viol = 0;
+    *err = ANISTAR_OK;
+    if (f->r >= prm->r0) viol = f->r / prm->r0;
+    if (f->g[0] >= ss->first_site) {
+        /* design: gamma(tau) approximated by the largest pairwise distortion of the
+         * vertices' metrics (paper 5.1); the trace filter settles most pairs. */
+        const as_metric_frame *m0 = &ss->mf[f->g[0]], *m1 = &ss->mf[f->g[1]],
+                              *m2 = &ss->mf[f->g[2]];
+        if (!as_metric_distortion_le(m0, m1, prm->gamma0) ||
+            !as_metric_distortion_le(m0, m2, prm->gamma0) ||
+            !as_metric_distortion_le(m1, m2, prm->gamma0)) {
+            double g = as_metric_distortion(m0, m1);
+            double g2 = as_metric_distortion(m0, m2), g3 = as_metric_distortion(m1, m2);
+            if (g2 > g) g = g2;
+            if (g3 > g) g = g3;
+            if (g >= prm->gamma0 && g / prm->gamma0 > viol) viol = g / prm->gamma0;
+        }
+    }
+    if (prm->approx > 0) {
+        const double *a = ss->xyz + 3 * (size_t)f->g[0], *b = ss->xyz + 3 * (size_t)f->g[1],
+                     *c = ss->xyz + 3 * (size_t)f->g[2];
+        double m[3], q[3];
+        for (int k = 0; k < 3; k++) m[k] = (a[k] + b[k] + c[k]) / 3.0;
+        anistar_status s = as_surface_project(ss->ctx, ss->surf, m, q);
+        if (s == ANISTAR_OK) {
+            double d = sqrt((m[0] - q[0]) * (m[0] - q[0]) + (m[1] - q[1]) * (m[1] - q[1]) +
+                            (m[2] - q[2]) * (m[2] - q[2]));
+            if (d > prm->approx && d / prm->approx > viol) viol = d / prm->approx;
+        } else if (s != ANISTAR_ENOSURFACE) {
+            *err = s;
+        }
+    }
+    return viol;
+}
+
+double as_rule2_violation(const as_starset *ss, const as_mesher_params *prm, int32_t v,
+                          const as_rfacet *f) {
+    double rho = as_radius_edge(&ss->mf[v], ss->xyz + 3 * (size_t)f->g[0],
+                                ss->xyz + 3 * (size_t)f->g[1], ss->xyz + 3 * (size_t)f->g[2], NULL);
+    return rho > prm->rho0 ? rho / prm->rho0 : 0;
+}
+
+/* ---- the refiner ---------------------------------------------------------------------- */
+
+typedef struct refiner {
+    anistar_context *ctx;
+    const as_mesher_params *prm;
+    as_starset *ss;
+    as_queue q[3];
+    uint64_t rng;
+    as_mesher_counters cnt;
+} refiner;
+
+static uint64_t rng_next(refiner *R) {
+    /* xorshift64* */
+    uint64_t x = R->rng;
+    x ^= x >> 12;
+    x ^= x << 25;
+    x ^= x >> 27;
+    R->rng = x;
+    return x * 0x2545F4914F6CDD1DULL;
+}
+static double rng_unit(refiner *R) { return (double)(rng_next(R) >> 11) * 0x1.0p-53; }
+
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Turn the star set's events into queue entries. */
+static anistar_status drain(refiner *R) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    for (size_t k = 0; k < ss->nev; k++) {
+        const as_fevent *e = &ss->ev[k];
+        as_star *st = ss->stars[e->star];
+        int32_t i = as_star_find(st, e->g);
+        if (i < 0) continue;
+        as_rfacet *f = &st->rf[i];
+        uint64_t key = as_facet_key(f->g);
+        if (!(f->queued & 1)) {
+            double v1 = as_rule1_violation(ss, R->prm, e->star, f, &s);
+            if (s != ANISTAR_OK) return s;
+            if (v1 > 0) {
+                as_qentry q = {v1, key, e->star};
+                if ((s = as_queue_push(R->ctx, &R->q[0], q)) != ANISTAR_OK) return s;
+                f->queued |= 1;
+            }
+        }
+        if (!(f->queued & 2)) {
+            double v2 = as_rule2_violation(ss, R->prm, e->star, f);
+            if (v2 > 0) {
+                as_qentry q = {v2, key, e->star};
+                if ((s = as_queue_push(R->ctx, &R->q[1], q)) != ANISTAR_OK) return s;
+                f->queued |= 2;
+            }
+        }
+        as_ftab_entry *te = as_starset_lookup(ss, key);
+        if (te && te->incpos >= 0 && !te->queued) {
+            as_qentry q = {f->r, key, e->star};
+            if ((s = as_queue_push(R->ctx, &R->q[2], q)) != ANISTAR_OK) return s;
+            te->queued = 1;
+        }
+    }
+    ss->nev = 0;
+    for (size_t k = 0; k < ss->nnewinc; k++) {
+        as_ftab_entry *te = as_starset_lookup(ss, ss->newinc[k]);
+        if (!te || te->incpos < 0 || te->queued) continue;
+        int32_t g[3];
+        as_facet_unkey(te->key, g);
+        /* the priority: r of the lowest star holding it */
+        for (int b = 0; b < 3; b++) {
+            if (!(te->mask & (1u << b))) continue;
+            as_star *st = ss->stars[g[b]];
+            int32_t i = st ? as_star_find(st, g) : -1;
+            if (i < 0) continue;
+            as_qentry q = {st->rf[i].r, te->key, g[b]};
+            if ((s = as_queue_push(R->ctx, &R->q[2], q)) != ANISTAR_OK) return s;
+            te->queued = 1;
+            break;
+        }
+    }
+    ss->nnewinc = 0;
+    return ANISTAR_OK;
+}
+
+static anistar_status insert_point(refiner *R, const double p[3]) {
+    anistar_status s = as_starset_insert(R->ss, p, NULL);
+    if (s != ANISTAR_OK) return s;
+    return drain(R);
+}
+
+/* 1 if p coincides with an existing point (kd-tree nearest at distance 0). */
+static int is_duplicate(const as_starset *ss, const double p[3]) {
+    int32_t id;
+    double d2;
+    if (as_kdtree_knn(ss->kd, p, 1, &id, &d2) == 0) return 0;
+    return d2 == 0;
+}
+
+/*
+ * Predict whether the facet f of the simulated star of p (id pid) would be restricted in
+ * the star of its vertex w (a site): the surface M_w-circumball of the triangle (the
+ * smallest M_w-circumball centred on S, paper 3.1) is empty of the points of w's star.
+ */
+static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t pid,
+                                         const double p[3], int32_t w, int *restricted) {
+    as_starset *ss = R->ss;
+    const as_metric_frame *mf = &ss->mf[w];
+    const double *x[3];
+    for (int k = 0; k < 3; k++) x[k] = f->g[k] == pid ? p : ss->xyz + 3 * (size_t)f->g[k];
+    double Y[3][3];
+    for (int k = 0; k < 3; k++) as_metric_apply(mf, x[k], Y[k]);
+    double u[3], v[3], n[3];
+    for (int k = 0; k < 3; k++) {
+        u[k] = Y[1][k] - Y[0][k];
+        v[k] = Y[2][k] - Y[0][k];
+    }
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+    double nn = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    *restricted = 0;
+    if (!(nn > 0)) return ANISTAR_OK;
+    double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2], vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double sv[3] = {uu * v[0] - vv * u[0], uu * v[1] - vv * u[1], uu * v[2] - vv * u[2]};
+    double O[3] = {Y[0][0] + (sv[1] * n[2] - sv[2] * n[1]) / (2 * nn * nn),
+                   Y[0][1] + (sv[2] * n[0] - sv[0] * n[2]) / (2 * nn * nn),
+                   Y[0][2] + (sv[0] * n[1] - sv[1] * n[0]) / (2 * nn * nn)};
+    double rho = sqrt((O[0] - Y[0][0]) * (O[0] - Y[0][0]) + (O[1] - Y[0][1]) * (O[1] - Y[0][1]) +
+                      (O[2] - Y[0][2]) * (O[2] - Y[0][2]));
+    /* design: the M_w-axis O + s n, s in [-2 rho, 2 rho], mapped back; its crossing with S
+     * nearest the circumcenter is the center of the surface ball. */
+    double A[3], B[3], o[3];
+    for (int k = 0; k < 3; k++) {
+        A[k] = O[k] - 2 * rho * n[k] / nn;
+        B[k] = O[k] + 2 * rho * n[k] / nn;
+    }
+    double a[3], b[3], c[3];
+    as_metric_unapply(mf, A, a);
+    as_metric_unapply(mf, B, b);
+    as_metric_unapply(mf, O, o);
+    int found = 0;
+    anistar_status s = as_surface_crossing(R->ctx, ss->surf, a, b, o, &found, c);
+    if (s != ANISTAR_OK) return s;
+    if (!found) return ANISTAR_OK;
+    double C[3];
+    as_metric_apply(mf, c, C);
+    double r2 = (C[0] - Y[0][0]) * (C[0] - Y[0][0]) + (C[1] - Y[0][1]) * (C[1] - Y[0][1]) +
+                (C[2] - Y[0][2]) * (C[2] - Y[0][2]);
+    const as_star *st = ss->stars[w];
+    const as_del3 *d = &st->del;
+    for (int32_t q = 0; q < d->nv; q++) {
+        int64_t gq = d->gid[q];
+        if (gq == f->g[0] || gq == f->g[1] || gq == f->g[2]) continue;
+        const double *Q = as_del3_point(d, q);
+        double d2 = (C[0] - Q[0]) * (C[0] - Q[0]) + (C[1] - Q[1]) * (C[1] - Q[1]) +
+                    (C[2] - Q[2]) * (C[2] - Q[2]);
+        if (d2 < r2) return ANISTAR_OK;
+    }
+    *restricted = 1;
+    return ANISTAR_OK;
+}
+
+/*
+ * Is p a valid refinement point for a facet of radius rv (paper 4.2)? We simulate p's
+ * star and reject p when one of its restricted facets smaller than beta * rv (radius in
+ * M_p) is predicted inconsistent: a vertex is a corner or pole, or the facet would not be
+ * restricted in the star of another vertex.
+ * design (replaces the hitting-set test, DESIGN.md 4.5): only the facets of p's own
+ * predicted surface star are examined; facets with p that other stars would gain but p's
+ * star would lack are not simulated (they are caught by rule 3 later).
+ */
+static anistar_status valid_point(refiner *R, const double p[3], double rv, int *valid) {
+    as_starset *ss = R->ss;
+    as_metric_frame mf;
+    anistar_status s = as_starset_metric(ss, p, &mf);
+    if (s != ANISTAR_OK) return s;
+    as_star *sp;
+    if ((s = as_starset_simulate(ss, p, &mf, &sp)) != ANISTAR_OK) return s;
+    int32_t pid = ss->n;
+    *valid = 1;
+    for (int32_t i = 0; i < sp->nrf && *valid; i++) {
+        const as_rfacet *f = &sp->rf[i];
+        if (f->r >= R->prm->beta * rv) continue;
+        for (int k = 0; k < 3 && *valid; k++) {
+            int32_t w = f->g[k];
+            if (w == pid) continue;
+            if (w < ss->first_site) {
+                *valid = 0;
+                break;
+            }
+            int res;
+            if ((s = predict_restricted(R, f, pid, p, w, &res)) != ANISTAR_OK) return s;
+            if (!res) *valid = 0;
+        }
+    }
+    return ANISTAR_OK;
+}
+
+/* Pick_valid(tau, M_v) (paper 4.2, DESIGN.md 4.5): the center first, then random points of
+ * the picking region; after pick_tries failures the center. */
+static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, double out[3]) {
+    as_starset *ss = R->ss;
+    /* a copy: simulations may move ss->mf */
+    const as_metric_frame mfv = ss->mf[v], *mf = &mfv;
+    anistar_status s;
+    int valid = 0;
+    memcpy(out, f->c, 3 * sizeof(double));
+    if (!is_duplicate(ss, f->c)) {
+        if ((s = valid_point(R, f->c, f->r, &valid)) != ANISTAR_OK) return s;
+        if (valid) return ANISTAR_OK;
+    }
+    double n[3];
+    int sing = 0;
+    if ((s = as_surface_normal_at(R->ctx, ss->surf, f->c, n, &sing)) != ANISTAR_OK) return s;
+    double rad = R->prm->delta * f->r;
+    for (int32_t t = 0; t < R->prm->pick_tries; t++) {
+        R->cnt.pick_tries++;
+        double u[3];
+        do {
+            for (int k = 0; k < 3; k++) u[k] = 2 * rng_unit(R) - 1;
+        } while (u[0] * u[0] + u[1] * u[1] + u[2] * u[2] > 1);
+        double w[3], y[3], q[3];
+        for (int k = 0; k < 3; k++) u[k] *= rad;
+        as_metric_unapply(mf, u, w);
+        /* design: a point of the M_v-ball around c, moved to the tangent plane at c, then
+         * projected onto S; kept if still within the picking region. */
+        double dn = sing ? 0 : w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
+        for (int k = 0; k < 3; k++) y[k] = f->c[k] + w[k] - dn * n[k];
+        s = as_surface_project(R->ctx, ss->surf, y, q);
+        if (s == ANISTAR_ENOSURFACE) continue;
+        if (s != ANISTAR_OK) return s;
+        if (!(as_metric_dist(mf, q, f->c) <= rad)) continue;
+        if (is_duplicate(ss, q)) continue;
+        if ((s = valid_point(R, q, f->r, &valid)) != ANISTAR_OK) return s;
+        if (valid) {
+            memcpy(out, q, sizeof q);
+            return ANISTAR_OK;
+        }
+    }
+    R->cnt.pick_failures++;
+    memcpy(out, f->c, 3 * sizeof(double));
+    return ANISTAR_OK;
+}
+
+/* ---- initial points ------------------------------------------------------------------- */
+
+/* design: the surface sample (256 points, every component) gives the poles; the initial
+ * sites are a farthest-point subset of each component's points: max(4, n_c / 8) of its
+ * n_c points (at most n_c). */
+static anistar_status initial_points(refiner *R) {
+    as_starset *ss = R->ss;
+    anistar_context *ctx = R->ctx;
+    as_point_sample smp;
+    memset(&smp, 0, sizeof smp);
+    anistar_status s = as_surface_sample(ctx, ss->surf, 256, &smp);
+    if (s != ANISTAR_OK) return s;
+    double *dist = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *dist);
+    if (!dist) {
+        as_surface_sample_free(ctx, &smp);
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (initial points)");
+    }
+    if ((s = as_starset_add_poles(ss, smp.points, (int32_t)smp.n, 256)) != ANISTAR_OK) goto done;
+    for (size_t c = 0; c < smp.ncomponents; c++) {
+        size_t nc = 0, first = SIZE_MAX;
+        for (size_t i = 0; i < smp.n; i++)
+            if ((size_t)smp.component[i] == c) {
+                nc++;
+                if (first == SIZE_MAX) first = i;
+                dist[i] = INFINITY;
+            }
+        if (!nc) continue;
+        size_t want = R->prm->initial_points > 0 ? (size_t)R->prm->initial_points : nc / 8;
+        if (want < 4) want = 4;
+        if (want > nc) want = nc;
+        size_t pick = first;
+        for (size_t k = 0; k < want; k++) {
+            const double *p = smp.points + 3 * pick;
+            if (!is_duplicate(ss, p)) {
+                if ((s = insert_point(R, p)) != ANISTAR_OK) goto done;
+                R->cnt.initial++;
+            }
+            dist[pick] = -1;
+            double best = -1;
+            size_t nx = pick;
+            for (size_t i = 0; i < smp.n; i++) {
+                if ((size_t)smp.component[i] != c || dist[i] < 0) continue;
+                const double *x = smp.points + 3 * i;
+                double d2 = (x[0] - p[0]) * (x[0] - p[0]) + (x[1] - p[1]) * (x[1] - p[1]) +
+                            (x[2] - p[2]) * (x[2] - p[2]);
+                if (d2 < dist[i]) dist[i] = d2;
+                if (dist[i] > best) {
+                    best = dist[i];
+                    nx = i;
+                }
+            }
+            if (best < 0) break;
+            pick = nx;
+        }
+    }
+done:
+    as_free(ctx, dist, (smp.n ? smp.n : 1) * sizeof *dist);
+    as_surface_sample_free(ctx, &smp);
+    return s;
+}
+
+/* ---- main loop ------------------------------------------------------------------------- */
+
+/* Pop the next valid entry of the highest-priority rule; *rule = -1 when none. */
+static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *fout) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    for (int k = 0; k < 3; k++) {
+        as_qentry e;
+        while (as_queue_pop(&R->q[k], &e)) {
+            int32_t g[3];
+            as_facet_unkey(e.key, g);
+            if (k < 2) {
+                as_star *st = ss->stars[e.star];
+                int32_t i = as_star_find(st, g);
+                if (i < 0 || !(st->rf[i].queued & (1u << k))) continue;
+                st->rf[i].queued &= (uint8_t) ~(1u << k);
+                double viol = k == 0 ? as_rule1_violation(ss, R->prm, e.star, &st->rf[i], &s)
+                                     : as_rule2_violation(ss, R->prm, e.star, &st->rf[i]);
+                if (k == 0 && s != ANISTAR_OK) return s;
+                if (viol <= 0) continue;
+                *rule = k;
+                *star = e.star;
+                *fout = st->rf[i];
+                return ANISTAR_OK;
+            }
+            as_ftab_entry *te = as_starset_lookup(ss, e.key);
+            if (!te) continue;
+            te->queued = 0;
+            if (te->incpos < 0) continue;
+            /* the lowest vertex whose star holds it */
+            for (int b = 0; b < 3; b++) {
+                if (!(te->mask & (1u << b))) continue;
+                as_star *st = ss->stars[g[b]];
+                int32_t i = as_star_find(st, g);
+                if (i < 0) continue;
+                *rule = 2;
+                *star = g[b];
+                *fout = st->rf[i];
+                return ANISTAR_OK;
+            }
+        }
+    }
+    *rule = -1;
+    return ANISTAR_OK;
+}
+
+/* Re-queue every inconsistent facet (the exact set) whose entry was dropped. */
+static anistar_status requeue_inconsistent(refiner *R, int *pushed) {
+    as_starset *ss = R->ss;
+    *pushed = 0;
+    for (size_t k = 0; k < ss->ninc; k++) {
+        as_ftab_entry *te = as_starset_lookup(ss, ss->inc[k]);
+        if (te->queued) continue;
+        as_qentry q = {0, te->key, 0};
+        anistar_status s = as_queue_push(R->ctx, &R->q[2], q);
+        if (s != ANISTAR_OK) return s;
+        te->queued = 1;
+        (*pushed)++;
+    }
+    return ANISTAR_OK;
+}
+
+anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
+                                  const as_field *field, const as_mesher_params *prm,
+                                  as_progress_fn progress, void *user, anistar_mesh **out,
+                                  as_starset **ss_out) {
+    *out = NULL;
+    if (ss_out) *ss_out = NULL;
+    double t0 = now_seconds();
+    refiner R;
+    memset(&R, 0, sizeof R);
+    R.ctx = ctx;
+    R.prm = prm;
+    /* splitmix64 of the seed: never zero for xorshift */
+    uint64_t z = prm->seed + 0x9E3779B97F4A7C15ULL;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    R.rng = (z ^ (z >> 31)) | 1;
+    as_starset *ss = as_alloc(ctx, sizeof *ss);
+    if (!ss) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    R.ss = ss;
+    anistar_status s = as_starset_init(ss, ctx, surf, field);
+    int complete = 0;
+    if (s == ANISTAR_OK) s = initial_points(&R);
+    double t1 = now_seconds();
+    R.cnt.t_init = t1 - t0;
+    int64_t maxv = prm->max_vertices > 0 ? prm->max_vertices : AS_STARSET_MAX_IDS - 1024;
+    uint64_t steps = 0;
+    int requeues = 0;
+    while (s == ANISTAR_OK) {
+        int rule;
+        int32_t v;
+        as_rfacet f;
+        if ((s = next_job(&R, &rule, &v, &f)) != ANISTAR_OK) break;
+        if (rule < 0) {
+            int pushed = 0;
+            if (ss->ninc == 0) {
+                complete = 1;
+                break;
+            }
+            /* design: inconsistent facets whose queue entry was consumed without killing
+             * them (their stars did not re-emit them) are queued again from the exact set;
+             * a bounded number of rounds without progress ends the run as incomplete. */
+            if ((s = requeue_inconsistent(&R, &pushed)) != ANISTAR_OK) break;
+            if (pushed == 0 || ++requeues > 64) break;
+            continue;
+        }
+        if ((int64_t)(ss->n - ss->first_site) >= maxv) break;
+        if (prm->max_seconds > 0 && now_seconds() - t1 > prm->max_seconds) break;
+        if (progress && (steps & 255) == 0 &&
+            progress((size_t)(ss->n - ss->first_site), ss->ninc, now_seconds() - t0, user)) {
+            s = as_fail(ctx, ANISTAR_ECANCELED, "mesher: canceled by the progress callback");
+            break;
+        }
+        steps++;
+        double p[3];
+        if (rule == 0) {
+            memcpy(p, f.c, sizeof p);
+            if (is_duplicate(ss, p)) {
+                /* the center is a site already (degenerate input): pick around it */
+                if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
+                if (is_duplicate(ss, p)) continue;
+            }
+        } else {
+            if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
+            if (is_duplicate(ss, p)) continue;
+        }
+        if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
+        R.cnt.rule[rule]++;
+    }
+    double t2 = now_seconds();
+    R.cnt.t_refine = t2 - t1;
+    for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
+    if (s == ANISTAR_OK) {
+        R.cnt.t_total = t2 - t0;
+        s = as_mesher_output(ss, prm, &R.cnt, complete, out);
+        if (s == ANISTAR_OK) {
+            double t3 = now_seconds();
+            (*out)->stats.seconds_output = t3 - t2;
+            (*out)->stats.seconds_total = t3 - t0;
+            if (!complete) s = ANISTAR_INCOMPLETE;
+        }
+    }
+    if (ss_out && (s == ANISTAR_OK || s == ANISTAR_INCOMPLETE)) {
+        *ss_out = ss;
+    } else {
+        as_starset_destroy(ss);
+        as_free(ctx, ss, sizeof *ss);
+    }
+    return s;
+}
+
+anistar_status as_mesher_run(anistar_context *ctx, const as_surface *surf, const as_field *field,
+                             const as_mesher_params *prm, as_progress_fn progress, void *user,
+                             anistar_mesh **out) {
+    return as_mesher_run_keep(ctx, surf, field, prm, progress, user, out, NULL);
+}

@@ -1,0 +1,148 @@
+/*
+ * star.h — internal: one vertex star of the anisotropic star set (DESIGN.md 4.3-4.4,
+ * paper 3.1 and 5.3).
+ *
+ * The star of a site v is the del3 triangulation T'_v of the stretched points F_v q, q in
+ * {8 corners of an enlarged bounding box (global ids 0-7)} u {v} u {the sites inserted
+ * into this star}. F_v is linear, so the stretched box contains every stretched surface
+ * point: every tet incident to v is finite.
+ *
+ * Restricted facets (the surface star S_v): a facet incident to v is restricted iff
+ * exactly one of its two tets is "inside": the tet's stretched circumcenter, mapped back
+ * by F_v^-1, lies strictly inside S (as_surface_side < 0; beyond the bounding sphere is
+ * outside). The inside flag is cached per tet slot and recomputed only for tets created
+ * since. For each restricted facet tau the star keeps its surface center c_v(tau) (the
+ * crossing of the dual segment with S nearest the facet's own circumcenter) and radius
+ * r_v(tau) = |F_v (c - v)|; both are reused while the two tets of the facet survive.
+ *
+ * The conflict zone Z_v is the union of the surface balls B_v(tau); while the surface
+ * star is not a closed disk (one closed fan of restricted facets around v), the star uses
+ * the union of the circumballs of its tets incident to v instead (a superset: paper 5.3's
+ * rule needs a complete restricted Voronoi cell). lo/hi bound it (DESIGN.md 4.4).
+ */
+#ifndef ANISTAR_STAR_H
+#define ANISTAR_STAR_H
+
+#include <stdint.h>
+
+#include "core.h"
+#include "geom/del3.h"
+#include "geom/metric.h"
+#include "surface/surface.h"
+
+/* A restricted facet of a star (always incident to the star's center). */
+typedef struct as_rfacet {
+    int32_t g[3];  /* global ids, ascending */
+    int32_t face;  /* 4t+i in the star's del3 (valid until the star changes) */
+    double c[3];   /* surface center c_v(tau) on S */
+    double r;      /* r_v(tau) = |F_v (c - v)| */
+    uint8_t fresh; /* 1 if created or moved by the last update (center recomputed) */
+    uint8_t queued;/* bit k: an entry of rule k+1's queue refers to this facet */
+} as_rfacet;
+
+/* What a star needs from its owner: the context, the surface, every point by global id. */
+typedef struct as_star_env {
+    anistar_context *ctx;
+    const as_surface *surf;
+    const double *xyz; /* 3 per global id (corners, poles, sites) */
+} as_star_env;
+
+typedef struct as_star {
+    int32_t gid;        /* the center v */
+    int32_t vloc;       /* v's vertex in del */
+    as_del3 del;
+    uint8_t *tflag;     /* per tet slot: bits 0-1 inside state (0 unknown, 1 out, 2 in),
+                           bit 2 created by the last insertion */
+    size_t cap_tflag;
+    as_rfacet *rf;      /* restricted facets, sorted by (g0, g1, g2) */
+    int32_t nrf, cap_rf;
+    int closed;         /* the restricted facets form one closed fan around v */
+    int32_t nv_base;    /* del.nv after the last (re)build: compaction trigger */
+    int32_t *itet;      /* the live tets incident to v (after the last update) */
+    int32_t nitet, cap_itet;
+    double lo[3], hi[3];/* box of the conflict zone */
+} as_star;
+
+/* Scratch shared by every star of one owner (never per star). */
+typedef struct as_star_scratch {
+    as_del3_buf tets, faces;
+    as_rfacet *old;
+    int32_t nold, cap_old;
+    /* design: the del3 insertion scratch (stack, cavity faces, edge tables with the
+     * 16 KB direct table, created/removed lists, pending hash) is lent to the star being
+     * modified and taken back after, so a star holds only its vertices and tets (memory
+     * per star, DESIGN.md 4.3 "pool the memory of all stars"). */
+    as_del3 donor;
+    int donor_init;
+} as_star_scratch;
+
+void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s);
+
+/* An empty star (allocates nothing). */
+void as_star_init(as_star *st, anistar_context *ctx);
+void as_star_destroy(anistar_context *ctx, as_star *st);
+
+/*
+ * (Re)build star st of site gid in the frame mf: corners[24] (ids 0-7), then v; restricted
+ * facets are computed (none usually). Returns OK, ENOMEM, EINVAL/ENOSURFACE from the
+ * surface, EINTERNAL (a del3 failure).
+ */
+anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                             int32_t gid, as_star_scratch *sc);
+
+/*
+ * Insert the sites gids[0..n) (points env->xyz) into star st, then recompute its
+ * restricted facets, closed flag and box. sc->old/nold receive the restricted facets from
+ * before (for the caller's diff). *changed (optional) = number of sites actually inserted
+ * (duplicates are skipped). Errors as as_star_build.
+ * design: del3 insertions; tets created get their flags reset; restricted facets from the
+ *   facets incident to v (as_del3_vertex_facets) by the inside-parity test; centers reused
+ *   when both tets of a facet survived (paper 5.3: a surface star changes only where its
+ *   tets changed).
+ */
+anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                              const int32_t *gids, int32_t n, as_star_scratch *sc,
+                              int32_t *changed);
+
+/*
+ * Compact star st: rebuild it from scratch (freeing its arrays) from the corners, v, and
+ * the sites seeds[0..n) (its current neighbours); the caller then grows it from the
+ * kd-tree (as for a new star). sc->old receives the facets from before.
+ */
+anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                               const int32_t *seeds, int32_t n, as_star_scratch *sc);
+
+/*
+ * Inflation of the surface balls in the conflict-zone test and box.
+ * design: paper 5.3 says the conflict zone only shrinks as sites are inserted. That is
+ * exact when S is a plane (q in B(x, |x - v|) is linear in x, and the new surface
+ * centers lie in the convex hull of the old ones), only approximate on a curved S: a new
+ * surface ball may bulge out of the old union and a site left out of T'_v then misses
+ * from S_v (seen on tori with coarse r0). We test against the balls inflated by this
+ * factor, AND require the exact conflict with a tet incident to v (necessary for any
+ * change of S_v); inserting a superset of the needed sites into T'_v is harmless.
+ */
+#define AS_STAR_ZONE_INFLATE 1.5
+
+/*
+ * 1 if inserting the point p (global id gid, not in the star) may change star st's
+ * surface star (DESIGN.md 4.4): p is in conflict (exact insphere) with a tet incident to
+ * v, and, if st is closed, p lies in some inflated surface ball
+ * (|F_v(c - p)| < AS_STAR_ZONE_INFLATE r). 0 otherwise. *hint (optional) receives the
+ * tet found in conflict: the start of the walk when p is then inserted (st->del.hint).
+ */
+int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
+                      int64_t gid, int32_t *hint);
+
+/* The index of the restricted facet with sorted ids g in st->rf, or -1. */
+int32_t as_star_find(const as_star *st, const int32_t g[3]);
+
+/* 1 if the facets rf[0..n) (all incident to v) form exactly one closed fan around v. */
+int as_star_fan_closed(const as_rfacet *rf, int32_t n, int32_t v);
+
+/* Radius-edge ratio of the triangle a, b, c in the frame mf (circumradius of F a, F b, F c
+ * over its shortest edge); +inf for a degenerate triangle. The circumradius in r (opt). */
+double as_radius_edge(const as_metric_frame *mf, const double a[3], const double b[3],
+                      const double c[3], double *r);
+
+#endif /* ANISTAR_STAR_H */

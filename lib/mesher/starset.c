@@ -1,0 +1,707 @@
+/*
+ * starset.c — the star set: points, stars, facet table, indexes, Insert(p), poles
+ * (DESIGN.md 4.4, paper 4.1 and 5.3). See starset.h.
+ */
+#include "mesher/starset.h"
+
+#include <math.h>
+#include <string.h>
+
+/* ---- points ------------------------------------------------------------------------ */
+
+static anistar_status grow_points(as_starset *ss, int32_t need) {
+    if (need <= ss->cap) return ANISTAR_OK;
+    if (need > AS_STARSET_MAX_IDS)
+        return as_fail(ss->ctx, ANISTAR_EINVAL, "mesher: too many points (limit %d)",
+                       (int)AS_STARSET_MAX_IDS);
+    size_t cap = ss->cap ? (size_t)ss->cap : 256;
+    while (cap < (size_t)need) cap *= 2;
+    if (cap > (size_t)AS_STARSET_MAX_IDS) cap = (size_t)AS_STARSET_MAX_IDS;
+    size_t old = (size_t)ss->cap;
+    /* design: allocate all four arrays first, so a failure changes nothing */
+    double *x = as_alloc_array(ss->ctx, cap, 3 * sizeof *x);
+    as_metric_frame *m = as_alloc_array(ss->ctx, cap, sizeof *m);
+    as_star **st = as_alloc_array(ss->ctx, cap, sizeof *st);
+    uint32_t *sp = as_alloc_array(ss->ctx, cap, sizeof *sp);
+    if (!x || !m || !st || !sp) {
+        as_free(ss->ctx, x, cap * 3 * sizeof *x);
+        as_free(ss->ctx, m, cap * sizeof *m);
+        as_free(ss->ctx, st, cap * sizeof *st);
+        as_free(ss->ctx, sp, cap * sizeof *sp);
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (points)");
+    }
+    if (old) {
+        memcpy(x, ss->xyz, old * 3 * sizeof *x);
+        memcpy(m, ss->mf, old * sizeof *m);
+        memcpy(st, ss->stars, old * sizeof *st);
+        memcpy(sp, ss->stamp, old * sizeof *sp);
+    }
+    for (size_t i = old; i < cap; i++) {
+        st[i] = NULL;
+        sp[i] = 0;
+    }
+    as_free(ss->ctx, ss->xyz, old * 3 * sizeof *x);
+    as_free(ss->ctx, ss->mf, old * sizeof *m);
+    as_free(ss->ctx, ss->stars, old * sizeof *st);
+    as_free(ss->ctx, ss->stamp, old * sizeof *sp);
+    ss->xyz = x;
+    ss->env.xyz = x;
+    ss->mf = m;
+    ss->stars = st;
+    ss->stamp = sp;
+    ss->cap = (int32_t)cap;
+    return ANISTAR_OK;
+}
+
+static void identity_frame(as_metric_frame *mf) {
+    static const double u[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    static const double e[3] = {1, 1, 1};
+    (void)as_metric_frame_from_eigen(mf, u, e);
+}
+
+anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf) {
+    double m[6];
+    anistar_status s = as_field_eval(ss->ctx, ss->field, p, m);
+    if (s != ANISTAR_OK) return s;
+    if (as_metric_frame_init(mf, m) != 0)
+        return as_fail(ss->ctx, ANISTAR_EINVAL,
+                       "mesher: the metric at (%.17g, %.17g, %.17g) is not finite and positive "
+                       "definite",
+                       p[0], p[1], p[2]);
+    return ANISTAR_OK;
+}
+
+/* ---- facet table --------------------------------------------------------------------- */
+
+static inline size_t hash_key(uint64_t k) {
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    k *= 0xc4ceb9fe1a85ec53ULL;
+    k ^= k >> 33;
+    return (size_t)k;
+}
+
+as_ftab_entry *as_starset_lookup(const as_starset *ss, uint64_t key) {
+    if (!ss->tab_cap) return NULL;
+    size_t m = ss->tab_cap - 1, i = hash_key(key) & m;
+    for (;;) {
+        as_ftab_entry *e = &ss->tab[i];
+        if (e->key == key) return e;
+        if (e->key == 0) return NULL;
+        i = (i + 1) & m;
+    }
+}
+
+int as_starset_consistent(const as_starset *ss, uint64_t key, uint8_t mask) {
+    int32_t g[3];
+    as_facet_unkey(key, g);
+    return mask == 7 && g[0] >= ss->first_site;
+}
+
+static anistar_status tab_rehash(as_starset *ss, size_t cap) {
+    as_ftab_entry *t = as_alloc_array(ss->ctx, cap, sizeof *t);
+    if (!t) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (facet table)");
+    memset(t, 0, cap * sizeof *t);
+    for (size_t i = 0; i < ss->tab_cap; i++) {
+        as_ftab_entry *e = &ss->tab[i];
+        if (!e->key) continue;
+        size_t j = hash_key(e->key) & (cap - 1);
+        while (t[j].key) j = (j + 1) & (cap - 1);
+        t[j] = *e;
+    }
+    as_free(ss->ctx, ss->tab, ss->tab_cap * sizeof *ss->tab);
+    ss->tab = t;
+    ss->tab_cap = cap;
+    return ANISTAR_OK;
+}
+
+static anistar_status inc_add(as_starset *ss, as_ftab_entry *e) {
+    if (ss->ninc == ss->cap_inc &&
+        as_grow(ss->ctx, (void **)&ss->inc, &ss->cap_inc, ss->ninc + 1, sizeof *ss->inc))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (inconsistent set)");
+    e->incpos = (int32_t)ss->ninc;
+    ss->inc[ss->ninc++] = e->key;
+    return ANISTAR_OK;
+}
+
+static void inc_remove(as_starset *ss, as_ftab_entry *e) {
+    size_t pos = (size_t)e->incpos;
+    uint64_t last = ss->inc[--ss->ninc];
+    if (pos != ss->ninc) {
+        ss->inc[pos] = last;
+        as_ftab_entry *o = as_starset_lookup(ss, last);
+        o->incpos = (int32_t)pos;
+    }
+    e->incpos = -1;
+}
+
+/* Delete the entry at slot i (backward-shift deletion keeps probe chains intact). */
+static void tab_delete(as_starset *ss, as_ftab_entry *e) {
+    size_t m = ss->tab_cap - 1, i = (size_t)(e - ss->tab);
+    size_t j = i;
+    for (;;) {
+        j = (j + 1) & m;
+        if (!ss->tab[j].key) break;
+        size_t h = hash_key(ss->tab[j].key) & m;
+        /* can the entry at j move to i? yes if h is not in the cyclic range (i, j] */
+        int move = (i <= j) ? (h <= i || h > j) : (h <= i && h > j);
+        if (move) {
+            ss->tab[i] = ss->tab[j]; /* the inconsistent set refers by key */
+            i = j;
+        }
+    }
+    memset(&ss->tab[i], 0, sizeof ss->tab[i]);
+    ss->tab_n--;
+}
+
+static anistar_status push_newinc(as_starset *ss, uint64_t key) {
+    if (ss->nnewinc == ss->cap_newinc &&
+        as_grow(ss->ctx, (void **)&ss->newinc, &ss->cap_newinc, ss->nnewinc + 1,
+                sizeof *ss->newinc))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (events)");
+    ss->newinc[ss->nnewinc++] = key;
+    return ANISTAR_OK;
+}
+
+/* Set (on = 1) or clear the bit of star v in the entry of triple g. */
+static anistar_status tab_bit(as_starset *ss, const int32_t g[3], int32_t v, int on) {
+    uint64_t key = as_facet_key(g);
+    int bit = g[0] == v ? 0 : g[1] == v ? 1 : 2;
+    anistar_status s;
+    as_ftab_entry *e = as_starset_lookup(ss, key);
+    if (!e) {
+        if (!on) return as_fail(ss->ctx, ANISTAR_EINTERNAL, "mesher: facet table out of sync");
+        if ((ss->tab_n + 1) * 4 > ss->tab_cap * 3 || ss->tab_cap == 0) {
+            if ((s = tab_rehash(ss, ss->tab_cap ? ss->tab_cap * 2 : 1024)) != ANISTAR_OK) return s;
+        }
+        size_t m = ss->tab_cap - 1, i = hash_key(key) & m;
+        while (ss->tab[i].key) i = (i + 1) & m;
+        e = &ss->tab[i];
+        e->key = key;
+        e->mask = 0;
+        e->incpos = -1;
+        e->queued = 0;
+        ss->tab_n++;
+    }
+    uint8_t mask = on ? (uint8_t)(e->mask | (1u << bit)) : (uint8_t)(e->mask & ~(1u << bit));
+    e->mask = mask;
+    int now_inc = mask != 0 && !as_starset_consistent(ss, key, mask);
+    int was_inc = e->incpos >= 0;
+    if (now_inc && !was_inc) {
+        if ((s = inc_add(ss, e)) != ANISTAR_OK) return s;
+        if ((s = push_newinc(ss, key)) != ANISTAR_OK) return s;
+    } else if (!now_inc && was_inc) {
+        inc_remove(ss, e);
+    }
+    if (mask == 0) tab_delete(ss, e);
+    return ANISTAR_OK;
+}
+
+static int cmp_g3(const int32_t a[3], const int32_t b[3]) {
+    for (int k = 0; k < 3; k++)
+        if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
+    return 0;
+}
+
+static anistar_status push_event(as_starset *ss, int32_t v, const int32_t g[3]) {
+    if (ss->nev == ss->cap_ev &&
+        as_grow(ss->ctx, (void **)&ss->ev, &ss->cap_ev, ss->nev + 1, sizeof *ss->ev))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (events)");
+    as_fevent *e = &ss->ev[ss->nev++];
+    e->star = v;
+    memcpy(e->g, g, sizeof e->g);
+    return ANISTAR_OK;
+}
+
+/* Apply the difference between old[0..nold) and star v's current facets (both sorted)
+ * to the table; events for fresh facets; the star's box to the box index. */
+static anistar_status apply_diff(as_starset *ss, int32_t v, const as_rfacet *old, int32_t nold) {
+    as_star *st = ss->stars[v];
+    anistar_status s;
+    int32_t i = 0, j = 0;
+    while (i < nold || j < st->nrf) {
+        int c = i >= nold ? 1 : j >= st->nrf ? -1 : cmp_g3(old[i].g, st->rf[j].g);
+        if (c < 0) {
+            if ((s = tab_bit(ss, old[i].g, v, 0)) != ANISTAR_OK) return s;
+            i++;
+        } else if (c > 0) {
+            if ((s = tab_bit(ss, st->rf[j].g, v, 1)) != ANISTAR_OK) return s;
+            j++;
+        } else {
+            i++;
+            j++;
+        }
+    }
+    for (int32_t k = 0; k < st->nrf; k++)
+        if (st->rf[k].fresh && (s = push_event(ss, v, st->rf[k].g)) != ANISTAR_OK) return s;
+    if ((s = as_boxindex_set(ss->ctx, ss->bi, v, st->lo, st->hi)) != ANISTAR_OK) return s;
+    return ANISTAR_OK;
+}
+
+/* ---- lifetime ------------------------------------------------------------------------ */
+
+anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_surface *surf,
+                               const as_field *field) {
+    memset(ss, 0, sizeof *ss);
+    ss->ctx = ctx;
+    ss->surf = surf;
+    ss->field = field;
+    ss->env.ctx = ctx;
+    ss->env.surf = surf;
+    anistar_status s;
+    if ((s = grow_points(ss, 1024)) != ANISTAR_OK) return s;
+    double R = surf->radius, h = 2.0 * R;
+    for (int k = 0; k < 3; k++) {
+        ss->box_lo[k] = surf->center[k] - h;
+        ss->box_hi[k] = surf->center[k] + h;
+    }
+    for (int32_t c = 0; c < 8; c++) {
+        for (int k = 0; k < 3; k++) ss->xyz[3 * c + k] = (c >> k) & 1 ? ss->box_hi[k] : ss->box_lo[k];
+        identity_frame(&ss->mf[c]);
+    }
+    ss->n = 8;
+    ss->first_site = 8;
+    if ((s = as_kdtree_new(ctx, &ss->kd)) != ANISTAR_OK) return s;
+    if ((s = as_boxindex_new(ctx, &ss->bi)) != ANISTAR_OK) return s;
+    ss->spare = as_alloc(ctx, sizeof *ss->spare);
+    if (!ss->spare) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    as_star_init(ss->spare, ctx);
+    return ANISTAR_OK;
+}
+
+void as_starset_destroy(as_starset *ss) {
+    anistar_context *ctx = ss->ctx;
+    if (!ctx) return;
+    for (int32_t i = 0; i < ss->n; i++)
+        if (ss->stars && ss->stars[i]) {
+            as_star_destroy(ctx, ss->stars[i]);
+            as_free(ctx, ss->stars[i], sizeof *ss->stars[i]);
+        }
+    if (ss->spare) {
+        as_star_destroy(ctx, ss->spare);
+        as_free(ctx, ss->spare, sizeof *ss->spare);
+    }
+    size_t cap = (size_t)ss->cap;
+    as_free(ctx, ss->xyz, cap * 3 * sizeof *ss->xyz);
+    as_free(ctx, ss->mf, cap * sizeof *ss->mf);
+    as_free(ctx, ss->stars, cap * sizeof *ss->stars);
+    as_free(ctx, ss->stamp, cap * sizeof *ss->stamp);
+    as_free(ctx, ss->tab, ss->tab_cap * sizeof *ss->tab);
+    as_free(ctx, ss->inc, ss->cap_inc * sizeof *ss->inc);
+    as_free(ctx, ss->ev, ss->cap_ev * sizeof *ss->ev);
+    as_free(ctx, ss->newinc, ss->cap_newinc * sizeof *ss->newinc);
+    as_free(ctx, ss->list, ss->cap_list * sizeof *ss->list);
+    as_free(ctx, ss->batch, ss->cap_batch * sizeof *ss->batch);
+    as_free(ctx, ss->rebuild, ss->cap_rebuild * sizeof *ss->rebuild);
+    as_free(ctx, ss->hints, ss->cap_hints * sizeof *ss->hints);
+    as_free(ctx, ss->keep, ss->cap_keep * sizeof *ss->keep);
+    as_idlist_free(ctx, &ss->cand);
+    as_idlist_free(ctx, &ss->ids);
+    as_star_scratch_free(ctx, &ss->sc);
+    if (ss->kd) as_kdtree_free(ctx, ss->kd);
+    if (ss->bi) as_boxindex_free(ctx, ss->bi);
+    memset(ss, 0, sizeof *ss);
+}
+
+/* ---- poles ----------------------------------------------------------------------------- */
+
+anistar_status as_starset_add_poles(as_starset *ss, const double *smp, int32_t n,
+                                    int32_t max_poles) {
+    anistar_context *ctx = ss->ctx;
+    if (ss->n != ss->first_site || n < 5 || max_poles <= 0) return ANISTAR_OK;
+    as_del3 d;
+    as_del3_init(&d, ctx);
+    as_del3_buf tets = {0};
+    double *cand = NULL;
+    size_t ncand = 0, cap_cand = 0;
+    double *best = NULL;
+    anistar_status s = as_del3_insert_points(&d, smp, NULL, n, NULL, NULL, NULL);
+    if (s != ANISTAR_OK) goto done;
+    if (!d.dim3) goto done;
+    double margin = 0.25 * ss->surf->radius;
+    for (int32_t v = 0; v < d.nv; v++) {
+        if ((s = as_del3_vertex_tets(&d, v, &tets)) != ANISTAR_OK) goto done;
+        const double *p = as_del3_point(&d, v);
+        int hull = 0;
+        double far[3] = {0, 0, 0}, fd = -1;
+        for (size_t k = 0; k < tets.n; k++) {
+            double c[3];
+            if (as_del3_circumcenter(&d, tets.a[k], c)) {
+                hull = 1;
+                continue;
+            }
+            double dd = (c[0] - p[0]) * (c[0] - p[0]) + (c[1] - p[1]) * (c[1] - p[1]) +
+                        (c[2] - p[2]) * (c[2] - p[2]);
+            if (dd > fd) {
+                fd = dd;
+                memcpy(far, c, sizeof far);
+            }
+        }
+        double dir[3];
+        double out[2][3];
+        int nout = 0;
+        if (hull) {
+            int sing = 0;
+            if ((s = as_surface_normal_at(ctx, ss->surf, p, dir, &sing)) != ANISTAR_OK) goto done;
+            if (sing) continue;
+        } else {
+            if (fd < 0) continue;
+            for (int k = 0; k < 3; k++) dir[k] = far[k] - p[k];
+            memcpy(out[nout++], far, sizeof far);
+        }
+        double od = -1, opp[3] = {0, 0, 0};
+        for (size_t k = 0; k < tets.n; k++) {
+            double c[3];
+            if (as_del3_circumcenter(&d, tets.a[k], c)) continue;
+            double w[3] = {c[0] - p[0], c[1] - p[1], c[2] - p[2]};
+            if (w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2] >= 0) continue;
+            double dd = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            if (dd > od) {
+                od = dd;
+                memcpy(opp, c, sizeof opp);
+            }
+        }
+        if (od >= 0) memcpy(out[nout++], opp, sizeof opp);
+        for (int q = 0; q < nout; q++) {
+            int inside = 1;
+            for (int k = 0; k < 3; k++)
+                inside &= out[q][k] > ss->box_lo[k] + margin && out[q][k] < ss->box_hi[k] - margin;
+            if (!inside) continue;
+            if (ncand == cap_cand &&
+                as_grow(ctx, (void **)&cand, &cap_cand, ncand + 1, 3 * sizeof *cand)) {
+                s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (poles)");
+                goto done;
+            }
+            memcpy(cand + 3 * ncand, out[q], 3 * sizeof(double));
+            ncand++;
+        }
+    }
+    if (ncand == 0) goto done;
+    /* design: farthest-point sampling from candidate 0 keeps the poles spread out. */
+    best = as_alloc_array(ctx, ncand, sizeof *best);
+    if (!best) {
+        s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (poles)");
+        goto done;
+    }
+    for (size_t i = 0; i < ncand; i++) best[i] = INFINITY;
+    size_t pick = 0;
+    int32_t npoles = 0;
+    while (npoles < max_poles) {
+        const double *c = cand + 3 * pick;
+        if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) goto done;
+        int32_t g = ss->n++;
+        memcpy(ss->xyz + 3 * (size_t)g, c, 3 * sizeof(double));
+        identity_frame(&ss->mf[g]);
+        if ((s = as_kdtree_insert(ctx, ss->kd, c, g)) != ANISTAR_OK) goto done;
+        npoles++;
+        best[pick] = -1;
+        size_t nx = 0;
+        double nd = -1;
+        for (size_t i = 0; i < ncand; i++) {
+            if (best[i] < 0) continue;
+            const double *x = cand + 3 * i;
+            double dd = (x[0] - c[0]) * (x[0] - c[0]) + (x[1] - c[1]) * (x[1] - c[1]) +
+                        (x[2] - c[2]) * (x[2] - c[2]);
+            if (dd < best[i]) best[i] = dd;
+            if (best[i] > nd) {
+                nd = best[i];
+                nx = i;
+            }
+        }
+        if (nd <= 0) break;
+        pick = nx;
+    }
+    ss->first_site = ss->n;
+done:
+    as_free(ctx, best, ncand * sizeof *best);
+    as_free(ctx, cand, cap_cand * 3 * sizeof *cand);
+    as_del3_buf_free(ctx, &tets);
+    as_del3_destroy(&d);
+    return s;
+}
+
+/* ---- Insert(p) -------------------------------------------------------------------------- */
+
+/* Candidates inserted per round while a star is not closed (see grow_star). */
+#define AS_STARSET_OPEN_BATCH 4
+
+static anistar_status push_i32(anistar_context *ctx, int32_t **a, size_t *cap, size_t n,
+                               int32_t x) {
+    if (n == *cap && as_grow(ctx, (void **)a, cap, n + 1, sizeof **a))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    (*a)[n] = x;
+    return ANISTAR_OK;
+}
+
+static uint32_t next_epoch(as_starset *ss) {
+    if (++ss->epoch == 0) {
+        memset(ss->stamp, 0, (size_t)ss->cap * sizeof *ss->stamp);
+        ss->epoch = 1;
+    }
+    return ss->epoch;
+}
+
+/*
+ * Grow star st of center gid (frame mf) from the sites of the kd-tree in its conflict-zone
+ * box until a round inserts nothing. Sites already stamped with ep are skipped (they are
+ * in the star or were tested). p (id pid, not yet in the kd-tree) is not a candidate.
+ */
+static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
+                                uint32_t ep) {
+    anistar_status s;
+    const double *c = ss->xyz + 3 * (size_t)st->gid;
+    for (;;) {
+        if ((s = as_kdtree_box(ss->ctx, ss->kd, st->lo, st->hi, &ss->ids)) != ANISTAR_OK)
+            return s;
+        size_t nb = 0;
+        int open = !st->closed;
+        for (size_t k = 0; k < ss->ids.n; k++) {
+            int32_t q = ss->ids.ids[k];
+            if (ss->stamp[q] == ep) continue;
+            ss->conflict_tests++;
+            if (!as_star_conflicts(st, mf, ss->xyz + 3 * (size_t)q, q, NULL)) {
+                /* design: zones only shrink, so a site outside it now stays outside */
+                ss->stamp[q] = ep;
+                continue;
+            }
+            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb, q)) != ANISTAR_OK) return s;
+            nb++;
+        }
+        if (nb == 0) return ANISTAR_OK;
+        if (open && nb > AS_STARSET_OPEN_BATCH) {
+            /* design: while the surface star is not a closed disk its zone is the whole
+             * flower of v, far larger than the final one: insert only the few candidates
+             * nearest v in M_v (ties by id), then test again against the smaller zone. */
+            for (size_t i = 0; i < AS_STARSET_OPEN_BATCH; i++) {
+                size_t best = i;
+                double bd = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)ss->batch[i]);
+                for (size_t j = i + 1; j < nb; j++) {
+                    double dj = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)ss->batch[j]);
+                    if (dj < bd || (dj == bd && ss->batch[j] < ss->batch[best])) {
+                        bd = dj;
+                        best = j;
+                    }
+                }
+                int32_t t = ss->batch[i];
+                ss->batch[i] = ss->batch[best];
+                ss->batch[best] = t;
+            }
+            nb = AS_STARSET_OPEN_BATCH;
+        }
+        for (size_t k = 0; k < nb; k++) ss->stamp[ss->batch[k]] = ep;
+        if ((s = as_star_insert(&ss->env, st, mf, ss->batch, (int32_t)nb, &ss->sc, NULL)) !=
+            ANISTAR_OK)
+            return s;
+    }
+}
+
+/* The stars that p (id gid) conflicts with, into ss->list; returns their count. */
+static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32_t gid,
+                                        size_t *count) {
+    anistar_status s;
+    *count = 0;
+    if ((s = as_boxindex_query_point(ss->ctx, ss->bi, p, &ss->cand)) != ANISTAR_OK) return s;
+    size_t nl = 0;
+    for (size_t k = 0; k < ss->cand.n; k++) {
+        int32_t v = ss->cand.ids[k];
+        ss->conflict_tests++;
+        int32_t hint = -1;
+        if (!as_star_conflicts(ss->stars[v], &ss->mf[v], p, gid, &hint)) continue;
+        if ((s = push_i32(ss->ctx, &ss->list, &ss->cap_list, nl, v)) != ANISTAR_OK) return s;
+        if ((s = push_i32(ss->ctx, &ss->hints, &ss->cap_hints, nl, hint)) != ANISTAR_OK) return s;
+        nl++;
+    }
+    *count = nl;
+    return ANISTAR_OK;
+}
+
+/* Build star st of p (id gid, frame mf) from the changed stars list[0..nl), the vertices
+ * p shares a restricted facet with in those stars (when p is a site of them), and growth. */
+static anistar_status build_star(as_starset *ss, as_star *st, const double p[3], int32_t gid,
+                                 const as_metric_frame *mf, size_t nl, int with_neighbours) {
+    anistar_status s;
+    (void)p;
+    if ((s = as_star_build(&ss->env, st, mf, gid, &ss->sc)) != ANISTAR_OK) return s;
+    uint32_t ep = next_epoch(ss);
+    size_t nb = 0;
+    ss->stamp[gid] = ep;
+    for (size_t k = 0; k < nl; k++) {
+        int32_t v = ss->list[k];
+        if (ss->stamp[v] != ep) {
+            ss->stamp[v] = ep;
+            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb++, v)) != ANISTAR_OK) return s;
+        }
+        if (!with_neighbours) continue;
+        const as_star *sv = ss->stars[v];
+        for (int32_t i = 0; i < sv->nrf; i++) {
+            const int32_t *g = sv->rf[i].g;
+            if (g[0] != gid && g[1] != gid && g[2] != gid) continue;
+            for (int j = 0; j < 3; j++) {
+                int32_t q = g[j];
+                if (q < 8 || ss->stamp[q] == ep) continue;
+                ss->stamp[q] = ep;
+                if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb++, q)) != ANISTAR_OK)
+                    return s;
+            }
+        }
+    }
+    if (nb) {
+        if ((s = as_star_insert(&ss->env, st, mf, ss->batch, (int32_t)nb, &ss->sc, NULL)) !=
+            ANISTAR_OK)
+            return s;
+    }
+    ss->star_builds++;
+    return grow_star(ss, st, mf, ep);
+}
+
+/* Rebuild star v from its neighbours and the kd-tree (as a new star), then apply the
+ * difference with its facets from before. */
+static anistar_status compact_star(as_starset *ss, int32_t v) {
+    as_star *st = ss->stars[v];
+    anistar_status s;
+    if ((size_t)st->nrf > ss->cap_keep &&
+        as_grow(ss->ctx, (void **)&ss->keep, &ss->cap_keep, (size_t)st->nrf, sizeof *ss->keep))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    int32_t nkeep = st->nrf;
+    if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
+    uint32_t ep = next_epoch(ss);
+    size_t nb = 0;
+    ss->stamp[v] = ep;
+    for (int32_t k = 0; k < nkeep; k++)
+        for (int j = 0; j < 3; j++) {
+            int32_t q = ss->keep[k].g[j];
+            if (q < 8 || ss->stamp[q] == ep) continue;
+            ss->stamp[q] = ep;
+            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb, q)) != ANISTAR_OK) return s;
+            nb++;
+        }
+    if ((s = as_star_rebuild(&ss->env, st, &ss->mf[v], ss->batch, (int32_t)nb, &ss->sc)) !=
+        ANISTAR_OK)
+        return s;
+    if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
+    st->nv_base = st->del.nv;
+    ss->star_rebuilds++;
+    /* the queue flags of facets that survived stay valid: copy them over */
+    for (int32_t k = 0; k < st->nrf; k++) {
+        int32_t lo = 0, hi = nkeep;
+        while (lo < hi) {
+            int32_t mid = (lo + hi) / 2;
+            int c = cmp_g3(ss->keep[mid].g, st->rf[k].g);
+            if (c == 0) {
+                lo = mid;
+                break;
+            }
+            if (c < 0) lo = mid + 1;
+            else hi = mid;
+        }
+        if (lo < nkeep && cmp_g3(ss->keep[lo].g, st->rf[k].g) == 0) {
+            st->rf[k].queued = ss->keep[lo].queued;
+            st->rf[k].fresh = 0;
+        }
+    }
+    return apply_diff(ss, v, ss->keep, nkeep);
+}
+
+anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
+    anistar_status s;
+    if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) return s;
+    int32_t gid = ss->n;
+    memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
+    if ((s = as_starset_metric(ss, p, &ss->mf[gid])) != ANISTAR_OK) return s;
+    as_star *st = as_alloc(ss->ctx, sizeof *st);
+    if (!st) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    as_star_init(st, ss->ctx);
+    ss->n++;
+    ss->stars[gid] = st;
+    if (gid_out) *gid_out = gid;
+
+    size_t nl;
+    if ((s = conflicting_stars(ss, p, gid, &nl)) != ANISTAR_OK) return s;
+    /* 1. insert p into the conflicting stars */
+    for (size_t k = 0; k < nl; k++) {
+        int32_t v = ss->list[k];
+        as_star *sv = ss->stars[v];
+        int32_t ch = 0;
+        sv->del.hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+        if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, &ch)) != ANISTAR_OK)
+            return s;
+        ss->star_updates++;
+        if ((s = apply_diff(ss, v, ss->sc.old, ss->sc.nold)) != ANISTAR_OK) return s;
+        /* design: a star whose point count doubled since it was built holds points that
+         * entered while its conflict zone was large; compact it after this insertion */
+        if (sv->closed && sv->del.nv > 24 && sv->del.nv > 2 * sv->nv_base) {
+            if ((s = push_i32(ss->ctx, &ss->rebuild, &ss->cap_rebuild, ss->nrebuild, v)) !=
+                ANISTAR_OK)
+                return s;
+            ss->nrebuild++;
+        }
+    }
+    /* 2. p's star */
+    if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 1)) != ANISTAR_OK) return s;
+    for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
+    if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
+    if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;
+    for (size_t k = 0; k < ss->nrebuild; k++)
+        if ((s = compact_star(ss, ss->rebuild[k])) != ANISTAR_OK) return s;
+    ss->nrebuild = 0;
+    return ANISTAR_OK;
+}
+
+anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
+                                   as_star **out) {
+    anistar_status s;
+    if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) return s;
+    int32_t gid = ss->n; /* provisional: the slot past the last point */
+    memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
+    size_t nl;
+    if ((s = conflicting_stars(ss, p, gid, &nl)) != ANISTAR_OK) return s;
+    if ((s = build_star(ss, ss->spare, p, gid, mf, nl, 0)) != ANISTAR_OK) return s;
+    *out = ss->spare;
+    return ANISTAR_OK;
+}
+
+/* ---- validator --------------------------------------------------------------------------- */
+
+anistar_status as_starset_check_table(as_starset *ss) {
+    /* every star facet has its bit; every entry's bits are backed by star facets */
+    size_t total_bits = 0;
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        as_star *st = ss->stars[v];
+        if (!st) continue;
+        for (int32_t k = 0; k < st->nrf; k++) {
+            const int32_t *g = st->rf[k].g;
+            as_ftab_entry *e = as_starset_lookup(ss, as_facet_key(g));
+            int bit = g[0] == v ? 0 : g[1] == v ? 1 : 2;
+            if (!e || !(e->mask & (1u << bit)))
+                return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+                               "facet table: (%d %d %d) of star %d missing", (int)g[0], (int)g[1],
+                               (int)g[2], (int)v);
+            total_bits++;
+        }
+    }
+    size_t entries = 0, bits = 0, incs = 0;
+    for (size_t i = 0; i < ss->tab_cap; i++) {
+        as_ftab_entry *e = &ss->tab[i];
+        if (!e->key) continue;
+        entries++;
+        for (int b = 0; b < 3; b++) bits += (e->mask >> b) & 1;
+        int inc = e->mask && !as_starset_consistent(ss, e->key, e->mask);
+        if (e->mask == 0)
+            return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: empty entry kept");
+        if (inc != (e->incpos >= 0))
+            return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: inconsistent flag wrong");
+        if (inc) {
+            incs++;
+            if ((size_t)e->incpos >= ss->ninc || ss->inc[e->incpos] != e->key)
+                return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: bad set position");
+        }
+        if (as_starset_lookup(ss, e->key) != e)
+            return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: unreachable entry");
+    }
+    if (entries != ss->tab_n || bits != total_bits || incs != ss->ninc)
+        return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+                       "facet table: counts differ (entries %zu/%zu, bits %zu/%zu, inc %zu/%zu)",
+                       entries, ss->tab_n, bits, total_bits, incs, ss->ninc);
+    return ANISTAR_OK;
+}

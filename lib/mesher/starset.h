@@ -1,0 +1,156 @@
+/*
+ * starset.h — internal: all the stars of the mesher, the facet table (consistency), the
+ * spatial indexes, Insert(p), poles (DESIGN.md 4.4, paper 4.1 and 5.3).
+ *
+ * Global ids: 0-7 the corners of the enlarged bounding box (in every star), then the
+ * poles (8 .. first_site-1: they localise stars, have no star, are never refined nor
+ * output), then the surface sites in insertion order. Every point is stored once in xyz
+ * by global id; every site's metric is evaluated once when it is inserted and kept as a
+ * frame.
+ *
+ * Facet table: sorted triple of global ids -> 3-bit mask of which of its vertices' stars
+ * hold it restricted (bit k for the k-th smallest id). A facet is consistent iff its mask
+ * is full and its three vertices are surface sites (corners and poles have no star). The
+ * set of inconsistent facets is kept exactly, updated from the difference of a star's
+ * restricted facets before and after each change (never by rescanning).
+ *
+ * Limits: global ids below 2^21 (the table packs a triple into 64 bits).
+ */
+#ifndef ANISTAR_STARSET_H
+#define ANISTAR_STARSET_H
+
+#include <stdint.h>
+
+#include "core.h"
+#include "geom/boxindex.h"
+#include "geom/kdtree.h"
+#include "mesher/star.h"
+#include "surface/field.h"
+
+#define AS_STARSET_MAX_IDS ((int32_t)1 << 21)
+
+typedef struct as_ftab_entry {
+    uint64_t key;   /* packed sorted triple; 0 = empty slot */
+    int32_t incpos; /* position in the inconsistent set, or -1 */
+    uint8_t mask;
+    uint8_t queued; /* an entry of rule 3's queue refers to it */
+} as_ftab_entry;
+
+/* A facet of a star that is new or whose surface ball moved (the refiner's queue feed). */
+typedef struct as_fevent {
+    int32_t star;
+    int32_t g[3];
+} as_fevent;
+
+typedef struct as_starset {
+    anistar_context *ctx;
+    const as_surface *surf;
+    const as_field *field;
+    as_star_env env;
+
+    int32_t n, cap;          /* points (global ids) */
+    double *xyz;             /* 3 per id */
+    as_metric_frame *mf;     /* per id (identity for corners and poles) */
+    as_star **stars;         /* per id (NULL for corners and poles) */
+    int32_t first_site;      /* 8 + number of poles */
+    double box_lo[3], box_hi[3]; /* the corner box */
+
+    /* facet table (open addressing, linear probing, backward-shift deletion) */
+    as_ftab_entry *tab;
+    size_t tab_cap, tab_n;
+    uint64_t *inc;           /* inconsistent facets (keys) */
+    size_t ninc, cap_inc;
+
+    as_kdtree *kd;           /* poles and sites */
+    as_boxindex *bi;         /* conflict-zone box of each star, keyed by global id */
+
+    /* events since the refiner last drained them */
+    as_fevent *ev;
+    size_t nev, cap_ev;
+    uint64_t *newinc;        /* keys that became inconsistent */
+    size_t nnewinc, cap_newinc;
+
+    /* scratch */
+    as_star_scratch sc;
+    as_idlist cand, ids;
+    int32_t *list, *batch;   /* changed stars; insertion batch */
+    int32_t *hints;          /* per changed star: a tet in conflict with p */
+    size_t cap_hints;
+    size_t cap_list, cap_batch;
+    uint32_t *stamp;         /* per id: membership marks */
+    uint32_t epoch;
+    as_star *spare;          /* a star for simulations (Pick_valid) */
+    int32_t *rebuild;        /* stars to compact after the current insertion */
+    size_t nrebuild, cap_rebuild;
+    as_rfacet *keep;         /* a star's facets before its compaction */
+    size_t cap_keep;
+
+    /* statistics */
+    uint64_t star_updates, star_builds, conflict_tests, star_rebuilds;
+} as_starset;
+
+/* Pack / unpack a sorted triple. */
+static inline uint64_t as_facet_key(const int32_t g[3]) {
+    return ((uint64_t)g[0] << 42) | ((uint64_t)g[1] << 21) | (uint64_t)g[2];
+}
+static inline void as_facet_unkey(uint64_t k, int32_t g[3]) {
+    g[0] = (int32_t)(k >> 42);
+    g[1] = (int32_t)((k >> 21) & 0x1FFFFF);
+    g[2] = (int32_t)(k & 0x1FFFFF);
+}
+
+/*
+ * Initialise: the corner box (half-width 2 R around the bounding sphere's center), the
+ * poles from a surface sample (see as_starset_add_poles), empty tables. Returns OK,
+ * ENOMEM, or the sampler's errors.
+ */
+anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_surface *surf,
+                               const as_field *field);
+void as_starset_destroy(as_starset *ss);
+
+/*
+ * Poles (paper 5.3, Amenta-Bern): from the ordinary Delaunay triangulation (identity
+ * frame) of the sample points smp[3n], for each sample point the farthest incident
+ * circumcenter p+ and the farthest one on the other side of p+ (for hull points p+ is at
+ * infinity along the outward normal: only the inner pole); candidates outside the
+ * corner box (with a margin of R/4) are dropped; farthest-point sampling keeps at most
+ * max_poles, spread out. Must be called before any site is inserted.
+ */
+anistar_status as_starset_add_poles(as_starset *ss, const double *smp, int32_t n,
+                                    int32_t max_poles);
+
+/*
+ * Insert(p) (paper 4.1 and 5.3): p becomes the site *gid (its metric evaluated now).
+ * design:
+ *  1. the stars whose conflict-zone box contains p (box index), tested exactly
+ *     (as_star_conflicts); p is inserted in those;
+ *  2. p's star: corners, p, the sites whose stars changed; then rounds: the sites of the
+ *     kd-tree inside the box of p's current conflict zone that conflict are inserted,
+ *     until a round inserts none (each site is tested once: zones only shrink);
+ *  3. the facet table, the inconsistent set and the events follow each star's diff; the
+ *     boxes of changed stars are updated.
+ * Returns OK, ENOMEM, EINVAL (metric not SPD or not finite at p, surface errors),
+ * EINTERNAL.
+ */
+anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid);
+
+/*
+ * Simulate p's star without changing anything: fills ss->spare with the star p would
+ * get (p given the provisional id ss->n, its frame *mf). Used by Pick_valid.
+ */
+anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
+                                   as_star **out);
+
+/* Evaluate the metric at p into a frame. EINVAL when the field fails or M is not SPD. */
+anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf);
+
+/* The table entry of key, or NULL. */
+as_ftab_entry *as_starset_lookup(const as_starset *ss, uint64_t key);
+/* 1 if the entry is consistent (full mask, three surface sites). */
+int as_starset_consistent(const as_starset *ss, uint64_t key, uint8_t mask);
+
+/* Validator: rebuild the table from every star's restricted facets and compare with the
+ * table and the inconsistent set. ANISTAR_OK or EINTERNAL with a message; ENOMEM. */
+anistar_status as_starset_check_table(as_starset *ss);
+
+#endif /* ANISTAR_STARSET_H */

@@ -1,0 +1,136 @@
+/*
+ * image.c — isosurfaces of 3D images (DESIGN.md 4.6): f = the cubic B-spline
+ * reconstruction of the voxels (surface/bspline.h) compared with an isovalue, with the
+ * background value outside the image on the outside side of the isovalue, so a surface
+ * touching the border of the image is still closed. The oracle is the generic one of
+ * surface.c built on eval (crossings, projection, frame, curvature metrics, sampling).
+ *
+ * Sign: inside = +1 ("greater", CGAL's convention for gray-level images): the inside is
+ * where the reconstruction exceeds iso, f = iso - value; inside = -1 ("less"):
+ * f = value - iso. The background is the smallest voxel value for "greater", the largest
+ * for "less" (so it lies strictly on the outside side: iso is required strictly inside
+ * the value range).
+ * Bounding sphere: the grid's voxel box grown by as_bspline_margin(iso) + 1 voxels
+ * (as_grid_bounding_sphere): beyond the margin f keeps the background's sign, so f > 0 on
+ * the sphere and S lies strictly inside it.
+ */
+#include "surface/surface.h"
+
+#include "io/image_io.h"
+#include "surface/bspline.h"
+
+#include <math.h>
+#include <string.h>
+
+typedef struct as_image_surface {
+    as_surface base;
+    as_bspline *bs;
+    double iso;
+    double sign; /* f = sign * (iso - value) */
+} as_image_surface;
+
+static double im_eval(const as_surface *s, const double p[3], int order, double g[3],
+                      double h[6]) {
+    const as_image_surface *is = (const as_image_surface *)s;
+    double v, sg = is->sign;
+    if (order <= 0) {
+        v = as_bspline_value(is->bs, p);
+    } else if (order == 1) {
+        v = as_bspline_value_grad(is->bs, p, g);
+        for (int i = 0; i < 3; i++) g[i] = -sg * g[i];
+    } else {
+        v = as_bspline_value_grad_hess(is->bs, p, g, h);
+        for (int i = 0; i < 3; i++) g[i] = -sg * g[i];
+        for (int i = 0; i < 6; i++) h[i] = -sg * h[i];
+    }
+    return sg * (is->iso - v);
+}
+
+static void im_destroy(as_surface *s) {
+    as_image_surface *is = (as_image_surface *)s;
+    anistar_context *ctx = s->ctx;
+    as_bspline_free(ctx, is->bs);
+    as_free(ctx, is, sizeof *is);
+}
+
+static const as_surface_ops image_ops = {"image", im_eval, NULL, NULL, NULL, NULL, NULL,
+                                         im_destroy};
+
+int as_surface_is_image(const as_surface *s) { return s && s->ops == &image_ops; }
+
+anistar_status as_image_surface_create(anistar_context *ctx, const char *name,
+                                       const struct as_image *img, double iso, int inside,
+                                       as_surface **out) {
+    *out = NULL;
+    if (!name) name = "image";
+    if (!img) return as_fail(ctx, ANISTAR_EINVAL, "%s: NULL image", name);
+    if (inside != 1 && inside != -1)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "%s: inside must be +1 (values greater than iso) or -1 (less), got %d",
+                       name, inside);
+    if (!isfinite(iso))
+        return as_fail(ctx, ANISTAR_EINVAL, "%s: the isovalue must be finite", name);
+    double lo, hi;
+    as_image_range(img, &lo, &hi);
+    if (!(lo < iso && iso < hi))
+        return as_fail(ctx, ANISTAR_ENOSURFACE,
+                       "%s: isovalue %g is not strictly inside the image's value range [%g, "
+                       "%g]: no surface",
+                       name, iso, lo, hi);
+    as_image_surface *is = as_alloc(ctx, sizeof *is);
+    if (!is) return as_fail(ctx, ANISTAR_ENOMEM, "%s: out of memory", name);
+    memset(is, 0, sizeof *is);
+    is->iso = iso;
+    is->sign = inside > 0 ? 1.0 : -1.0;
+    anistar_status st = as_bspline_create(ctx, img, inside > 0 ? lo : hi, &is->bs);
+    if (st) {
+        as_free(ctx, is, sizeof *is);
+        return st;
+    }
+    double m = as_bspline_margin(is->bs, iso), c[3], r;
+    as_grid_bounding_sphere(as_bspline_grid(is->bs), m + 1, c, &r);
+    st = as_surface_init(ctx, &is->base, &image_ops, c, r);
+    if (st) {
+        as_bspline_free(ctx, is->bs);
+        as_free(ctx, is, sizeof *is);
+        return st;
+    }
+    *out = &is->base;
+    return ANISTAR_OK;
+}
+
+anistar_status as_image_surface_read(anistar_context *ctx, const char *path, double iso,
+                                     int inside, as_surface **out) {
+    *out = NULL;
+    as_image *img = NULL;
+    anistar_status st = as_image_read(ctx, path, &img);
+    if (st) return st;
+    st = as_image_surface_create(ctx, path, img, iso, inside, out);
+    as_image_free(ctx, img);
+    return st;
+}
+
+anistar_status as_image_surface_from_array(anistar_context *ctx, const double *voxels,
+                                           const size_t dims[3], const double spacing[3],
+                                           const double origin[3], double iso, int inside,
+                                           as_surface **out) {
+    *out = NULL;
+    if (!voxels || !dims)
+        return as_fail(ctx, ANISTAR_EINVAL, "image surface: NULL voxels or dimensions");
+    as_image *img = NULL;
+    anistar_status st = as_image_new(ctx, dims[0], dims[1], dims[2], AS_VOXEL_F64, &img);
+    if (st) return st;
+    st = as_image_set_geometry(ctx, img, spacing, origin, NULL);
+    if (!st) {
+        memcpy(img->data, voxels, img->count * sizeof(double));
+        size_t first;
+        size_t bad = as_image_count_nonfinite(img, &first);
+        if (bad)
+            st = as_fail(ctx, ANISTAR_EINVAL,
+                         "image surface: %zu voxels are not finite, the first at index %zu",
+                         bad, first);
+    }
+    if (!st) st = as_image_surface_create(ctx, "image", img, iso, inside, out);
+    as_image_free(ctx, img);
+    return st;
+}

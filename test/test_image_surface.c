@@ -1,0 +1,419 @@
+/*
+ * test_image_surface.c — isosurfaces of 3D images (lib/surface/image.c):
+ *  - a synthetic image of a quadratic (R^2 - |x - c|^2, reproduced by the cubic B-spline
+ *    away from the border) with a non-unit spacing and an offset origin: the surface is
+ *    the sphere of radius R (crossings, projections, normals, curvatures 1/R, the
+ *    curvature metric I/R^2), both inside conventions;
+ *  - the skull (CGAL's skull_2.9.inr at 2.9) and the head MRI (brain_t1.mhd / .nhdr at
+ *    40, which crosses the first and last z slices): closed surfaces — f > 0 on the
+ *    bounding sphere, even sign-change counts along chords, the sampler finds components
+ *    without leaking out, and where the head is cut by the image border the surface
+ *    closes within two voxels beyond it;
+ *  - errors: iso outside the value range (ENOSURFACE), missing files (EIO), bad inside,
+ *    NaN voxels, zero dimensions, an image path given to anistar_surface_read;
+ *  - allocation failures (synthetic image and file).
+ */
+#include "test_util.h"
+
+#include "geom/linalg.h"
+#include "io/image_io.h"
+#include "surface/bspline.h"
+#include "surface/field.h"
+#include "surface/surface.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static double dot3(const double a[3], const double b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
+static double dist3(const double a[3], const double b[3]) {
+    double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+    return norm3(d);
+}
+static void rand_unit(tu_rng *r, double u[3]) {
+    double n;
+    do {
+        for (int i = 0; i < 3; i++) u[i] = tu_rng_range(r, -1, 1);
+        n = norm3(u);
+    } while (n > 1 || n < 0.1);
+    for (int i = 0; i < 3; i++) u[i] /= n;
+}
+
+static void data_path(char *buf, size_t n, const char *name) {
+    snprintf(buf, n, "%s/%s", AS_TEST_DATA_DIR, name);
+}
+
+/* ---- the synthetic ball ------------------------------------------------------------------ */
+
+#define BN 48
+static const double b_spacing[3] = {1.0, 1.5, 0.8};
+static const double b_origin[3] = {-3, 2, 5};
+static const double b_R = 6;
+
+static void ball_center(double c[3]) {
+    for (int i = 0; i < 3; i++) c[i] = b_origin[i] + 0.5 * (BN - 1) * b_spacing[i];
+}
+
+/* voxels of R^2 - |x - c|^2 (x fastest) */
+static double *ball_voxels(void) {
+    double *v = test_malloc(BN * BN * BN * sizeof(double)), c[3];
+    ball_center(c);
+    for (int k = 0; k < BN; k++)
+        for (int j = 0; j < BN; j++)
+            for (int i = 0; i < BN; i++) {
+                double x[3] = {b_origin[0] + i * b_spacing[0], b_origin[1] + j * b_spacing[1],
+                               b_origin[2] + k * b_spacing[2]};
+                double d2 = 0;
+                for (int a = 0; a < 3; a++) d2 += (x[a] - c[a]) * (x[a] - c[a]);
+                v[i + BN * (j + BN * k)] = b_R * b_R - d2;
+            }
+    return v;
+}
+
+static void test_synthetic_ball(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    double *vox = ball_voxels(), c[3];
+    ball_center(c);
+    size_t dims[3] = {BN, BN, BN};
+    as_surface *s;
+    assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, 1, &s),
+                     ANISTAR_OK);
+    assert_true(as_surface_is_image(s));
+    assert_false(as_surface_is_mesh(s));
+    assert_string_equal(s->ops->kind, "image");
+    /* the sphere of the grid's box lies inside the bounding sphere */
+    assert_true(dist3(s->center, c) < 1e-9);
+    tu_rng r = {3};
+    for (int i = 0; i < 200; i++) {
+        double u[3], p[3], q[3], x[3];
+        rand_unit(&r, u);
+        /* crossing from the center outward */
+        for (int k = 0; k < 3; k++) {
+            p[k] = c[k] + 2 * b_R * u[k];
+            q[k] = c[k] + tu_rng_range(&r, 0.5, 1.5) * b_R * u[k];
+        }
+        int found;
+        assert_int_equal(as_surface_crossing(ctx, s, c, p, p, &found, x), ANISTAR_OK);
+        assert_true(found);
+        assert_true(fabs(dist3(x, c) - b_R) < 1e-6 * b_R);
+        /* projection, normal, curvatures */
+        double y[3];
+        assert_int_equal(as_surface_project(ctx, s, q, y), ANISTAR_OK);
+        assert_true(fabs(dist3(y, c) - b_R) < 1e-6 * b_R);
+        as_surface_frame fr;
+        assert_int_equal(as_surface_frame_at(ctx, s, y, &fr), ANISTAR_OK);
+        for (int k = 0; k < 3; k++) assert_true(fabs(fr.n[k] - (y[k] - c[k]) / b_R) < 1e-6);
+        assert_true(fabs(fr.k[0] * b_R - 1) < 1e-5 && fabs(fr.k[1] * b_R - 1) < 1e-5);
+        int side;
+        assert_int_equal(as_surface_side(ctx, s, q, &side), ANISTAR_OK);
+        assert_int_equal(side, dist3(q, c) < b_R ? -1 : 1);
+    }
+    /* the curvature metric: isotropic 1/R^2 (e_n = the largest e_1 = 1/R) */
+    as_field *f;
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature", &f), ANISTAR_OK);
+    for (int i = 0; i < 20; i++) {
+        double u[3], p[3], m[6];
+        rand_unit(&r, u);
+        for (int k = 0; k < 3; k++) p[k] = c[k] + b_R * u[k];
+        assert_int_equal(as_field_eval(ctx, f, p, m), ANISTAR_OK);
+        double want[6] = {1 / (b_R * b_R), 0, 0, 1 / (b_R * b_R), 0, 1 / (b_R * b_R)};
+        for (int k = 0; k < 6; k++) assert_true(fabs(m[k] - want[k]) < 1e-5 / (b_R * b_R));
+    }
+    as_field_free(f);
+    as_point_sample smp;
+    assert_int_equal(as_surface_sample(ctx, s, 64, &smp), ANISTAR_OK);
+    assert_int_equal(smp.ncomponents, 1);
+    for (size_t i = 0; i < smp.n; i++)
+        assert_true(fabs(dist3(smp.points + 3 * i, c) - b_R) < 1e-6 * b_R);
+    as_surface_sample_free(ctx, &smp);
+    as_surface_free(s);
+
+    /* inside = -1: the inside is where the value is below iso, so the center is outside;
+     * the complement is closed by the background (the largest value) beyond the border */
+    assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, -1, &s),
+                     ANISTAR_OK);
+    int side;
+    double far[3] = {c[0] + 2 * b_R, c[1], c[2]};
+    assert_int_equal(as_surface_side(ctx, s, c, &side), ANISTAR_OK);
+    assert_int_equal(side, 1);
+    assert_int_equal(as_surface_side(ctx, s, far, &side), ANISTAR_OK);
+    assert_int_equal(side, -1);
+    as_surface_frame fr;
+    double on[3] = {c[0] + b_R, c[1], c[2]};
+    assert_int_equal(as_surface_frame_at(ctx, s, on, &fr), ANISTAR_OK);
+    assert_true(fr.n[0] < -0.999999 && fabs(fr.k[0] * b_R + 1) < 1e-5); /* faces the center */
+    assert_int_equal(as_surface_sample(ctx, s, 64, &smp), ANISTAR_OK); /* closed: no leak */
+    assert_true(smp.ncomponents >= 2); /* the ball's wall and the box closing the rest */
+    as_surface_sample_free(ctx, &smp);
+    as_surface_free(s);
+    test_free(vox);
+    anistar_context_free(ctx);
+}
+
+/* ---- closedness of the data images ---------------------------------------------------------- */
+
+/* f > 0 on the bounding sphere; even numbers of sign changes of f along random chords
+ * (sampled every `step`); the sampler succeeds (it fails when f < 0 on the sphere).
+ * Returns the number of chords that met the object. */
+static int check_closed(anistar_context *ctx, const as_surface *s, double step, tu_rng *r,
+                        int nchords) {
+    int met = 0;
+    for (int i = 0; i < nchords; i++) {
+        /* the chord through a random point m within R/4 of the center along u */
+        double u[3], w[3], m[3], a[3], b[3];
+        rand_unit(r, u);
+        rand_unit(r, w);
+        double rm = 0.25 * s->radius * tu_rng_unit(r);
+        for (int k = 0; k < 3; k++) m[k] = s->center[k] + rm * w[k];
+        double mc[3] = {m[0] - s->center[0], m[1] - s->center[1], m[2] - s->center[2]};
+        double bq = dot3(mc, u), cq = dot3(mc, mc) - s->radius * s->radius;
+        double t0 = -bq - sqrt(bq * bq - cq), t1 = -bq + sqrt(bq * bq - cq);
+        for (int k = 0; k < 3; k++) {
+            a[k] = m[k] + t0 * u[k];
+            b[k] = m[k] + t1 * u[k];
+        }
+        double fa, fb;
+        int sa;
+        assert_int_equal(as_surface_side(ctx, s, a, &sa), ANISTAR_OK);
+        assert_int_equal(sa, 1);
+        assert_int_equal(as_surface_eval(ctx, s, a, 0, &fa, NULL, NULL), ANISTAR_OK);
+        assert_int_equal(as_surface_eval(ctx, s, b, 0, &fb, NULL, NULL), ANISTAR_OK);
+        assert_true(fa > 0 && fb > 0);
+        int n = (int)ceil(dist3(a, b) / step), changes = 0;
+        double prev = fa;
+        for (int j = 1; j <= n; j++) {
+            double t = (double)j / n, p[3], f;
+            for (int k = 0; k < 3; k++) p[k] = (1 - t) * a[k] + t * b[k];
+            assert_int_equal(as_surface_eval(ctx, s, p, 0, &f, NULL, NULL), ANISTAR_OK);
+            if ((f < 0) != (prev < 0)) changes++;
+            prev = f;
+        }
+        assert_int_equal(changes % 2, 0);
+        met += changes > 0;
+    }
+    as_point_sample smp;
+    anistar_status st = as_surface_sample(ctx, s, 128, &smp);
+    if (st) fail_msg("sampling: %s", anistar_last_error(ctx));
+    assert_true(smp.ncomponents >= 1);
+    for (size_t i = 0; i < smp.n; i++) {
+        double f;
+        assert_int_equal(as_surface_eval(ctx, s, smp.points + 3 * i, 0, &f, NULL, NULL),
+                         ANISTAR_OK);
+        double g[3];
+        assert_int_equal(as_surface_eval(ctx, s, smp.points + 3 * i, 1, &f, g, NULL), ANISTAR_OK);
+        assert_true(fabs(f) <= 1e-9 * norm3(g) * s->radius + 1e-300);
+    }
+    as_surface_sample_free(ctx, &smp);
+    return met;
+}
+
+static void test_skull(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    char path[512];
+    data_path(path, sizeof path, "skull_2.9.inr");
+    as_surface *s;
+    assert_int_equal(as_image_surface_read(ctx, path, 2.9, 1, &s), ANISTAR_OK);
+    tu_rng r = {5};
+    int met = check_closed(ctx, s, 1.0, &r, 40);
+    assert_true(met >= 4);
+    /* the curvature metric is SPD at sampled points */
+    as_field *f;
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature,power=0.5", &f), ANISTAR_OK);
+    as_point_sample smp;
+    assert_int_equal(as_surface_sample(ctx, s, 32, &smp), ANISTAR_OK);
+    for (size_t i = 0; i < smp.n; i++) {
+        double m[6], w[3], v[9];
+        assert_int_equal(as_field_eval(ctx, f, smp.points + 3 * i, m), ANISTAR_OK);
+        assert_int_equal(as_sym3_eigen(m, w, v), 0);
+        assert_true(w[0] > 0);
+    }
+    as_surface_sample_free(ctx, &smp);
+    as_field_free(f);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+static void test_brain(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    const char *files[] = {"brain_t1.mhd", "brain_t1.nhdr"};
+    const double iso = 40;
+    double f0[2][4];
+    for (int fi = 0; fi < 2; fi++) {
+        char path[512];
+        data_path(path, sizeof path, files[fi]);
+        as_image *img;
+        assert_int_equal(as_image_read(ctx, path, &img), ANISTAR_OK);
+        as_surface *s;
+        assert_int_equal(as_image_surface_read(ctx, path, iso, 1, &s), ANISTAR_OK);
+        tu_rng r = {9};
+        int met = check_closed(ctx, s, 2.0, &r, 25);
+        assert_true(met >= 5);
+        /* the head crosses the first and last z slices: voxels above iso there, and the
+         * surface closes within 2 voxels beyond the border */
+        size_t nx = img->nx, ny = img->ny, nz = img->nz, border = 0;
+        for (int end = 0; end < 2; end++) {
+            size_t kz = end ? nz - 1 : 0;
+            for (size_t j = 0; j < ny; j += 3)
+                for (size_t i = 0; i < nx; i += 3) {
+                    if (as_image_value(img, i + nx * (j + ny * kz)) <= iso + 20) continue;
+                    double vin[3] = {(double)i, (double)j, (double)kz}, vout[3], pin[3], pout[3];
+                    memcpy(vout, vin, sizeof vin);
+                    vout[2] += end ? 3 : -3;
+                    as_grid_voxel_to_world(&img->grid, vin, pin);
+                    as_grid_voxel_to_world(&img->grid, vout, pout);
+                    double fin, fout;
+                    assert_int_equal(as_surface_eval(ctx, s, pin, 0, &fin, NULL, NULL), ANISTAR_OK);
+                    assert_int_equal(as_surface_eval(ctx, s, pout, 0, &fout, NULL, NULL),
+                                     ANISTAR_OK);
+                    if (!(fin < 0)) continue; /* interpolation: the voxel value is the spline's */
+                    assert_true(fout > 0);
+                    int found;
+                    double x[3], vx[3];
+                    assert_int_equal(as_surface_crossing(ctx, s, pin, pout, pin, &found, x),
+                                     ANISTAR_OK);
+                    assert_true(found);
+                    as_grid_world_to_voxel(&img->grid, x, vx);
+                    double beyond = end ? vx[2] - (double)(nz - 1) : -vx[2];
+                    assert_true(beyond > 0 && beyond < 2);
+                    border++;
+                }
+        }
+        assert_true(border > 20);
+        /* both headers describe the same image: the same surface */
+        double p[4][3] = {{100, 120, 3}, {127, 127, 91}, {60, 200, 180}, {30, 30, 30}};
+        for (int k = 0; k < 4; k++)
+            assert_int_equal(as_surface_eval(ctx, s, p[k], 0, &f0[fi][k], NULL, NULL), ANISTAR_OK);
+        as_image_free(ctx, img);
+        as_surface_free(s);
+    }
+    for (int k = 0; k < 4; k++) assert_true(f0[0][k] == f0[1][k]);
+    anistar_context_free(ctx);
+}
+
+/* ---- errors and the public API ----------------------------------------------------------------- */
+
+static void test_errors_and_api(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    char path[512];
+    data_path(path, sizeof path, "skull_2.9.inr");
+    anistar_surface *s = (anistar_surface *)1;
+    assert_int_equal(anistar_surface_from_image_file(ctx, path, 9, ANISTAR_INSIDE_GREATER, &s),
+                     ANISTAR_ENOSURFACE);
+    assert_null(s);
+    assert_non_null(strstr(anistar_last_error(ctx), "value range"));
+    assert_int_equal(anistar_surface_from_image_file(ctx, path, -1, ANISTAR_INSIDE_LESS, &s),
+                     ANISTAR_ENOSURFACE);
+    assert_int_equal(anistar_surface_from_image_file(ctx, path, NAN, 1, &s), ANISTAR_EINVAL);
+    assert_int_equal(anistar_surface_from_image_file(ctx, path, 2.9, 0, &s), ANISTAR_EINVAL);
+    assert_int_equal(anistar_surface_from_image_file(ctx, "/nonexistent/x.nrrd", 1, 1, &s),
+                     ANISTAR_EIO);
+    assert_int_equal(anistar_surface_from_image_file(ctx, "x.png", 1, 1, &s), ANISTAR_EFORMAT);
+    assert_int_equal(anistar_surface_read(ctx, path, &s), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "an image needs an isovalue"));
+    /* the file through the public API: eval with derivatives, curvature, metric */
+    assert_int_equal(anistar_surface_from_image_file(ctx, path, 2.9, ANISTAR_INSIDE_GREATER, &s),
+                     ANISTAR_OK);
+    double c[3], r;
+    assert_int_equal(anistar_surface_bound(s, c, &r), ANISTAR_OK);
+    double q[3], f, g[3], h[6];
+    assert_int_equal(anistar_surface_project(s, c, q), ANISTAR_OK);
+    assert_int_equal(anistar_surface_eval(s, q, &f, g, h), ANISTAR_OK);
+    assert_true(fabs(f) <= 1e-9 * norm3(g) * r);
+    anistar_surface_free(s);
+    /* arrays */
+    double *vox = ball_voxels();
+    size_t dims[3] = {BN, BN, BN}, zero[3] = {BN, 0, BN};
+    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, b_spacing, b_origin, 0,
+                                                ANISTAR_INSIDE_GREATER, &s),
+                     ANISTAR_OK);
+    double ctr[3], k[2];
+    ball_center(ctr);
+    double on[3] = {ctr[0], ctr[1] + b_R, ctr[2]};
+    assert_int_equal(anistar_surface_curvature(s, on, k, NULL, NULL), ANISTAR_OK);
+    assert_true(fabs(k[0] * b_R - 1) < 1e-5);
+    anistar_surface_free(s);
+    assert_int_equal(anistar_surface_from_image(ctx, vox, zero, NULL, NULL, 0, 1, &s),
+                     ANISTAR_EINVAL);
+    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, 1e9, 1, &s),
+                     ANISTAR_ENOSURFACE);
+    double badsp[3] = {1, -1, 1};
+    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, badsp, NULL, 0, 1, &s),
+                     ANISTAR_EINVAL);
+    vox[100] = NAN;
+    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, 0, 1, &s),
+                     ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "not finite"));
+    assert_int_equal(anistar_surface_from_image(ctx, NULL, dims, NULL, NULL, 0, 1, &s),
+                     ANISTAR_EINVAL);
+    test_free(vox);
+    /* a constant image has no surface */
+    double flat[27];
+    for (int i = 0; i < 27; i++) flat[i] = 3;
+    size_t d3[3] = {3, 3, 3};
+    assert_int_equal(anistar_surface_from_image(ctx, flat, d3, NULL, NULL, 3, 1, &s),
+                     ANISTAR_ENOSURFACE);
+    anistar_context_free(ctx);
+}
+
+/* ---- allocation failures ------------------------------------------------------------------------ */
+
+static void test_alloc_failures(void **state) {
+    (void)state;
+    /* a small synthetic image: a blob in 8^3 voxels */
+    double vox[512];
+    for (int k = 0; k < 8; k++)
+        for (int j = 0; j < 8; j++)
+            for (int i = 0; i < 8; i++)
+                vox[i + 8 * (j + 8 * k)] = 9 - ((i - 3.5) * (i - 3.5) + (j - 3.5) * (j - 3.5) +
+                                                 (k - 3.5) * (k - 3.5));
+    size_t dims[3] = {8, 8, 8};
+    char path[512];
+    data_path(path, sizeof path, "skull_2.9.inr");
+    for (int which = 0; which < 2; which++) {
+        tu_alloc ta;
+        int done = 0;
+        long n;
+        for (n = 0; !done; n++) {
+            tu_alloc_init(&ta, n);
+            anistar_allocator al = tu_allocator(&ta);
+            anistar_context *ctx = anistar_context_new(&al);
+            if (!ctx) continue;
+            as_surface *s = NULL;
+            anistar_status st = which == 0
+                                    ? as_image_surface_from_array(ctx, vox, dims, NULL, NULL, 0, 1, &s)
+                                    : as_image_surface_read(ctx, path, 2.9, 1, &s);
+            if (st) assert_null(s);
+            as_point_sample smp;
+            if (!st && which == 0) {
+                st = as_surface_sample(ctx, s, 16, &smp);
+                if (!st) as_surface_sample_free(ctx, &smp);
+            }
+            if (st) {
+                assert_int_equal(st, ANISTAR_ENOMEM);
+            } else {
+                done = 1;
+            }
+            as_surface_free(s);
+            anistar_context_free(ctx);
+            assert_int_equal(ta.live_blocks, 0);
+            assert_int_equal(ta.live_bytes, 0);
+        }
+        assert_true(n > 3);
+    }
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_synthetic_ball), cmocka_unit_test(test_skull),
+        cmocka_unit_test(test_brain),          cmocka_unit_test(test_errors_and_api),
+        cmocka_unit_test(test_alloc_failures),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

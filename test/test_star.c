@@ -1,0 +1,239 @@
+/*
+ * test_star.c — one vertex star (lib/mesher/star.c) and the facet table of the star set
+ * (lib/mesher/starset.c), against brute-force recomputations.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test_util.h"
+
+#include "geom/del3.h"
+#include "geom/metric.h"
+#include "mesher/star.h"
+#include "mesher/starset.h"
+#include "surface/field.h"
+#include "surface/surface.h"
+
+/* A random point on the unit sphere. */
+static void sphere_point(tu_rng *r, double p[3]) {
+    double n;
+    do {
+        for (int k = 0; k < 3; k++) p[k] = tu_rng_range(r, -1, 1);
+        n = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    } while (n < 0.1 || n > 1);
+    for (int k = 0; k < 3; k++) p[k] /= n;
+}
+
+/* A random metric frame: random orthonormal frame, eigenvalues of F in [1, amax]. */
+static void random_frame(tu_rng *r, double amax, as_metric_frame *mf) {
+    double u[9], a[3], b[3], c[3];
+    sphere_point(r, a);
+    sphere_point(r, b);
+    double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for (int k = 0; k < 3; k++) b[k] -= d * a[k];
+    double nb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    for (int k = 0; k < 3; k++) b[k] /= nb;
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+    memcpy(u, a, sizeof a);
+    memcpy(u + 3, b, sizeof b);
+    memcpy(u + 6, c, sizeof c);
+    double e[3] = {tu_rng_range(r, 1, amax), tu_rng_range(r, 1, amax), tu_rng_range(r, 1, amax)};
+    assert_int_equal(as_metric_frame_init(mf, (double[6]){0}), -1); /* sanity of the API */
+    assert_int_equal(as_metric_frame_from_eigen(mf, u, e), 0);
+}
+
+static int cmp_tri(const void *a, const void *b) {
+    const int32_t *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return 0;
+}
+
+/* Inside test of the unit sphere with bounding radius 1.25 (the builtin "sphere"), done
+ * directly: strictly inside |x| < 1. */
+static int inside_unit(const double x[3]) {
+    return x[0] * x[0] + x[1] * x[1] + x[2] * x[2] < 1.0;
+}
+
+/*
+ * Brute force: the facets incident to site v (index iv in pts) of the Delaunay
+ * triangulation of F_v {corners, sites}, built from scratch by bulk insertion, whose two
+ * tets have circumcenters (mapped back) on opposite sides of S. Sorted triples of ids.
+ */
+static size_t brute_restricted(anistar_context *ctx, const double *pts, const int64_t *ids,
+                               int32_t n, int32_t iv, const as_metric_frame *mf, int32_t *out) {
+    as_del3 d;
+    as_del3_init(&d, ctx);
+    int32_t *vx = malloc((size_t)n * sizeof *vx);
+    assert_int_equal(as_del3_insert_points(&d, pts, ids, n, mf, vx, NULL), ANISTAR_OK);
+    as_del3_buf faces = {0};
+    assert_int_equal(as_del3_vertex_facets(&d, vx[iv], &faces), ANISTAR_OK);
+    size_t m = 0;
+    for (size_t k = 0; k < faces.n; k++) {
+        int32_t f = faces.a[k], t1 = f >> 2, t2 = as_del3_mirror(&d, f) >> 2;
+        double c1[3], c2[3], x1[3], x2[3];
+        assert_int_equal(as_del3_circumcenter(&d, t1, c1), 0);
+        assert_int_equal(as_del3_circumcenter(&d, t2, c2), 0);
+        as_metric_unapply(mf, c1, x1);
+        as_metric_unapply(mf, c2, x2);
+        if (inside_unit(x1) == inside_unit(x2)) continue;
+        int32_t *g = out + 3 * m;
+        int q = 0;
+        for (int j = 0; j < 4; j++)
+            if (j != (f & 3)) g[q++] = (int32_t)d.gid[d.tet_v[4 * t1 + j]];
+        qsort(g, 1, 3 * sizeof *g, cmp_tri); /* no-op; sort the triple below */
+        for (int a = 0; a < 3; a++)
+            for (int b = a + 1; b < 3; b++)
+                if (g[b] < g[a]) {
+                    int32_t t = g[a];
+                    g[a] = g[b];
+                    g[b] = t;
+                }
+        m++;
+    }
+    qsort(out, m, 3 * sizeof *out, cmp_tri);
+    as_del3_buf_free(ctx, &faces);
+    as_del3_destroy(&d);
+    free(vx);
+    return m;
+}
+
+static void test_restricted_vs_brute_force(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    tu_rng r = {12345};
+    for (int trial = 0; trial < 24; trial++) {
+        int32_t nsites = 8 + (int32_t)(tu_rng_u64(&r) % 40);
+        int32_t n = 8 + nsites;
+        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
+        int64_t *ids = malloc((size_t)n * sizeof *ids);
+        for (int32_t c = 0; c < 8; c++) {
+            for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 2.5 : -2.5;
+            ids[c] = c;
+        }
+        for (int32_t i = 8; i < n; i++) {
+            sphere_point(&r, xyz + 3 * i);
+            ids[i] = i;
+        }
+        as_metric_frame mf;
+        random_frame(&r, trial < 8 ? 1.0 + 1e-9 : 4.0, &mf);
+        as_star_env env = {ctx, s, xyz};
+        as_star_scratch sc;
+        memset(&sc, 0, sizeof sc);
+        as_star st;
+        as_star_init(&st, ctx);
+        int32_t v = 8;
+        assert_int_equal(as_star_build(&env, &st, &mf, v, &sc), ANISTAR_OK);
+        /* insert the others in a few random batches */
+        int32_t *rest = malloc((size_t)nsites * sizeof *rest);
+        int32_t nr = 0;
+        for (int32_t i = 9; i < n; i++) rest[nr++] = i;
+        for (int32_t i = nr - 1; i > 0; i--) {
+            int32_t j = (int32_t)(tu_rng_u64(&r) % (uint64_t)(i + 1));
+            int32_t t = rest[i];
+            rest[i] = rest[j];
+            rest[j] = t;
+        }
+        int32_t done = 0;
+        while (done < nr) {
+            int32_t b = 1 + (int32_t)(tu_rng_u64(&r) % 5);
+            if (b > nr - done) b = nr - done;
+            assert_int_equal(as_star_insert(&env, &st, &mf, rest + done, b, &sc, NULL), ANISTAR_OK);
+            done += b;
+        }
+        int32_t *bf = malloc(3 * 64 * (size_t)n * sizeof *bf);
+        size_t m = brute_restricted(ctx, xyz, ids, n, 8, &mf, bf);
+        assert_int_equal((size_t)st.nrf, m);
+        for (int32_t k = 0; k < st.nrf; k++) {
+            assert_memory_equal(st.rf[k].g, bf + 3 * k, 3 * sizeof(int32_t));
+            /* the surface center lies on S and is equidistant in M_v */
+            const double *c = st.rf[k].c;
+            double rc = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+            assert_true(fabs(rc - 1.0) <= 1e-10);
+            for (int j = 0; j < 3; j++) {
+                double dj = as_metric_dist(&mf, c, xyz + 3 * st.rf[k].g[j]);
+                assert_true(fabs(dj - st.rf[k].r) <= 1e-8 * (1 + st.rf[k].r));
+            }
+        }
+        /* with all sites inserted, a star of a well-spread sample is a closed fan iff its
+         * link is a single cycle: cross-check the flag with the definition */
+        assert_int_equal(st.closed, as_star_fan_closed(st.rf, st.nrf, v));
+        free(bf);
+        free(rest);
+        as_star_destroy(ctx, &st);
+        as_star_scratch_free(ctx, &sc);
+        free(xyz);
+        free(ids);
+    }
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+static void test_fan_closed(void **state) {
+    (void)state;
+    as_rfacet f[4];
+    memset(f, 0, sizeof f);
+    int32_t tri[4][3] = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 1, 4}};
+    for (int i = 0; i < 4; i++) memcpy(f[i].g, tri[i], sizeof tri[i]);
+    assert_true(as_star_fan_closed(f, 4, 0));
+    assert_false(as_star_fan_closed(f, 3, 0)); /* an open fan */
+    int32_t two[4][3] = {{0, 1, 2}, {0, 2, 3}, {0, 1, 3}, {0, 4, 5}};
+    for (int i = 0; i < 4; i++) memcpy(f[i].g, two[i], sizeof two[i]);
+    assert_false(as_star_fan_closed(f, 4, 0)); /* a cycle and a stray facet */
+}
+
+/* Random insertion sequences into a star set: after each insertion the table equals a
+ * full rescan of every star (as_starset_check_table). */
+static void test_facet_table_vs_rescan(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    as_field *f;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    const char *specs[2] = {"euclidean", "shock"};
+    for (int sp = 0; sp < 2; sp++) {
+        assert_int_equal(as_field_from_spec(ctx, s, specs[sp], &f), ANISTAR_OK);
+        for (int seq = 0; seq < 3; seq++) {
+            tu_rng r = {(uint64_t)(777 + 31 * seq + 1000 * sp)};
+            as_starset ss;
+            assert_int_equal(as_starset_init(&ss, ctx, s, f), ANISTAR_OK);
+            if (seq == 2) {
+                /* with poles from a sample */
+                double smp[3 * 64];
+                for (int i = 0; i < 64; i++) sphere_point(&r, smp + 3 * i);
+                assert_int_equal(as_starset_add_poles(&ss, smp, 64, 32), ANISTAR_OK);
+                assert_true(ss.first_site > 8);
+            }
+            size_t maxinc = 0;
+            for (int i = 0; i < 150; i++) {
+                double p[3];
+                sphere_point(&r, p);
+                assert_int_equal(as_starset_insert(&ss, p, NULL), ANISTAR_OK);
+                assert_int_equal(as_starset_check_table(&ss), ANISTAR_OK);
+                if (ss.ninc > maxinc) maxinc = ss.ninc;
+            }
+            /* the anisotropic sequences do exercise inconsistencies (with the identity
+             * metric every star is a piece of one Delaunay triangulation) */
+            if (sp == 1) assert_true(maxinc > 0);
+            as_starset_destroy(&ss);
+        }
+        as_field_free(f);
+    }
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_fan_closed),
+        cmocka_unit_test(test_restricted_vs_brute_force),
+        cmocka_unit_test(test_facet_table_vs_rescan),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

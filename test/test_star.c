@@ -85,7 +85,6 @@ static size_t brute_restricted(anistar_context *ctx, const double *pts, const in
         int q = 0;
         for (int j = 0; j < 4; j++)
             if (j != (f & 3)) g[q++] = (int32_t)d.gid[d.tet_v[4 * t1 + j]];
-        qsort(g, 1, 3 * sizeof *g, cmp_tri); /* no-op; sort the triple below */
         for (int a = 0; a < 3; a++)
             for (int b = a + 1; b < 3; b++)
                 if (g[b] < g[a]) {

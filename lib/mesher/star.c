@@ -53,7 +53,7 @@ static inline void cross3(const double a[3], const double b[3], double r[3]) {
 /* Circumcenter of the triangle a, b, c in its plane; returns -1 when degenerate. */
 static int tri_circumcenter(const double a[3], const double b[3], const double c[3],
                             double o[3]) {
-    double u[3], v[3], w[3], t1[3], t2[3];
+    double u[3], v[3], w[3], t1[3];
     sub3(b, a, u);
     sub3(c, a, v);
     cross3(u, v, w);
@@ -62,7 +62,6 @@ static int tri_circumcenter(const double a[3], const double b[3], const double c
     double uu = dot3(u, u), vv = dot3(v, v);
     double s[3] = {uu * v[0] - vv * u[0], uu * v[1] - vv * u[1], uu * v[2] - vv * u[2]};
     cross3(s, w, t1);
-    (void)t2;
     for (int k = 0; k < 3; k++) o[k] = a[k] + t1[k] / (2.0 * w2);
     return 0;
 }

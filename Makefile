@@ -65,6 +65,8 @@ TEST_LDLIBS := -lcmocka -lgmp -lm -lpthread
 .PHONY: all lib tools examples tests benches check check-deps check-run sanitize bench \
         demo install uninstall clean
 .DEFAULT_GOAL := all
+# Keep object files of chained rules (examples, tests, benches): no rebuild on every make.
+.SECONDARY:
 
 all: lib tools examples
 

@@ -4,10 +4,11 @@
  *
  *   anistar probe SURFACE [--metric SPEC] --at X,Y,Z
  *   anistar render MESH -o OUT.png [options]
- *   anistar mesh ...                             (coming: listed, not available yet)
+ *   anistar mesh SURFACE [options] -o OUT [-o OUT2 ...]
  *   anistar --help | --version
  *
- * Exit status: 0 done; 1 error (one line on stderr); 2 usage error (one line on stderr).
+ * Exit status: 0 done; 1 error (one line on stderr); 2 usage error (one line on stderr);
+ * 3 (mesh) stopped at a limit: output written, incomplete.
  */
 #include "anistar.h"
 
@@ -18,7 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { EXIT_OK = 0, EXIT_ERROR = 1, EXIT_USAGE = 2 };
+enum { EXIT_OK = 0, EXIT_ERROR = 1, EXIT_USAGE = 2, EXIT_INCOMPLETE = 3 };
 
 /* One line on stderr, "anistar: ...". */
 static void say(const char *fmt, ...) {
@@ -486,6 +487,260 @@ static int cmd_render(int argc, char **argv) {
     return rc;
 }
 
+/* ---- mesh -------------------------------------------------------------------------- */
+
+/* The numeric options of mesh, in the order of their anistar_param (DESIGN.md 3). */
+static const struct mesh_param {
+    const char *flag;
+    const char *json; /* its key in the --stats "parameters" */
+    anistar_param key;
+    int integer; /* 1: an integer value */
+} mesh_params[] = {
+    {"--r0", "r0", ANISTAR_PARAM_R0, 0},
+    {"--gamma0", "gamma0", ANISTAR_PARAM_GAMMA0, 0},
+    {"--rho0", "rho0", ANISTAR_PARAM_RHO0, 0},
+    {"--beta", "beta", ANISTAR_PARAM_BETA, 0},
+    {"--delta", "delta", ANISTAR_PARAM_DELTA, 0},
+    {"--approx", "approx", ANISTAR_PARAM_APPROX, 0},
+    {"--max-vertices", "max_vertices", ANISTAR_PARAM_MAX_VERTICES, 1},
+    {"--max-seconds", "max_seconds", ANISTAR_PARAM_MAX_SECONDS, 0},
+    {"--seed", "seed", ANISTAR_PARAM_SEED, 1},
+    {"--pick-tries", "pick_tries", ANISTAR_PARAM_PICK_TRIES, 1},
+};
+#define NMESH_PARAMS (sizeof mesh_params / sizeof mesh_params[0])
+#define MAX_OUTPUTS 16
+enum { MESH_SEED = 8 }; /* the index of --seed in mesh_params */
+
+/* A JSON string on f. */
+static void json_string_to(FILE *f, const char *s) {
+    fputc('"', f);
+    for (const unsigned char *c = (const unsigned char *)s; *c; c++) {
+        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
+        else if (*c < 0x20) fprintf(f, "\\u%04x", *c);
+        else fputc(*c, f);
+    }
+    fputc('"', f);
+}
+
+/* The output formats of -o (anistar_mesh_write picks the writer by extension). */
+static int mesh_output_ok(const char *path) {
+    static const char *const exts[] = {".off", ".obj", ".ply", ".stl", ".mesh", ".vtk", ".vtu"};
+    for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++)
+        if (has_extension(path, exts[i])) return 1;
+    return 0;
+}
+
+/* Progress on stderr: one line rewritten with \r, shown once a run passes one second. */
+typedef struct progress_state {
+    int shown;
+} progress_state;
+
+static int mesh_progress(size_t vertices, size_t inconsistent, double seconds, void *user) {
+    progress_state *p = user;
+    if (seconds < 1.0) return 0;
+    fprintf(stderr, "\ranistar: mesh: %zu vertices, %zu inconsistent facets, %.1f s   ",
+            vertices, inconsistent, seconds);
+    fflush(stderr);
+    p->shown = 1;
+    return 0;
+}
+
+/* Write the --stats JSON. Returns 0, or -1 if the file cannot be written. */
+static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
+                            const double *values, const char *metric, int complete) {
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    fprintf(f, "{\n");
+    fprintf(f, "  \"vertices\": %zu,\n  \"facets\": %zu,\n  \"inconsistent_facets\": %zu,\n",
+            st->vertices, st->facets, st->inconsistent_facets);
+    fprintf(f, "  \"poles\": %zu,\n  \"euler_characteristic\": %lld,\n", st->poles,
+            st->euler_characteristic);
+    fprintf(f, "  \"closed_manifold\": %s,\n  \"complete\": %s,\n",
+            st->closed_manifold ? "true" : "false", complete ? "true" : "false");
+    fprintf(f, "  \"seconds\": {\"total\": %.6g, \"init\": %.6g, \"refine\": %.6g, "
+               "\"output\": %.6g},\n",
+            st->seconds_total, st->seconds_init, st->seconds_refine, st->seconds_output);
+    fprintf(f, "  \"insertions\": {\"initial\": %llu, \"rule1\": %llu, \"rule2\": %llu, "
+               "\"rule3\": %llu},\n",
+            (unsigned long long)st->insertions_initial,
+            (unsigned long long)st->insertions_rule[0],
+            (unsigned long long)st->insertions_rule[1],
+            (unsigned long long)st->insertions_rule[2]);
+    fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
+            (unsigned long long)st->pick_valid_tries,
+            (unsigned long long)st->pick_valid_failures);
+    fprintf(f, "  \"rho_max\": %.17g,\n  \"r_max\": %.17g,\n  \"gamma_max\": %.17g,\n",
+            st->rho_max, st->r_max, st->gamma_max);
+    fprintf(f, "  \"histogram_width\": %.17g,\n  \"histogram\": [", st->histogram_width);
+    for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++)
+        fprintf(f, "%s%llu", i ? ", " : "", (unsigned long long)st->histogram[i]);
+    fprintf(f, "],\n  \"parameters\": {\"metric\": ");
+    json_string_to(f, metric);
+    for (size_t i = 0; i < NMESH_PARAMS; i++)
+        fprintf(f, ", \"%s\": %.17g", mesh_params[i].json, values[i]);
+    fprintf(f, "},\n  \"seed\": %.17g\n}\n", values[MESH_SEED]);
+    int bad = ferror(f);
+    if (fclose(f) != 0) bad = 1;
+    return bad ? -1 : 0;
+}
+
+static int cmd_mesh(int argc, char **argv) {
+    surface_opts so;
+    memset(&so, 0, sizeof so);
+    const char *metric = NULL, *sol = NULL, *stats = NULL, *outs[MAX_OUTPUTS];
+    int nouts = 0, quiet = 0, has_value[NMESH_PARAMS] = {0};
+    double value[NMESH_PARAMS];
+    for (int i = 0; i < argc;) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--quiet")) {
+            quiet = 1;
+            i++;
+            continue;
+        }
+        if (!strcmp(a, "--optimize")) {
+            say("--optimize is not available yet");
+            return EXIT_USAGE;
+        }
+        int k = -1;
+        for (size_t j = 0; j < NMESH_PARAMS; j++)
+            if (!strcmp(a, mesh_params[j].flag)) k = (int)j;
+        int other = !strcmp(a, "-o") || !strcmp(a, "--metric") || !strcmp(a, "--sol") ||
+                    !strcmp(a, "--stats");
+        if (k < 0 && !other) {
+            int r = surface_option(&so, argc, argv, &i);
+            if (r < 0) return EXIT_USAGE;
+            if (r == 0) {
+                say("mesh: unknown option '%s' (try 'anistar --help')", a);
+                return EXIT_USAGE;
+            }
+            continue;
+        }
+        if (i + 1 >= argc) {
+            say("%s needs a value", a);
+            return EXIT_USAGE;
+        }
+        const char *v = argv[i + 1];
+        i += 2;
+        if (k >= 0) {
+            if (has_value[k]++) {
+                say("%s given twice", a);
+                return EXIT_USAGE;
+            }
+            if (parse_numbers(v, &value[k], 1) ||
+                (mesh_params[k].integer && value[k] != floor(value[k]))) {
+                say("%s expects %s, got '%s'", a,
+                    mesh_params[k].integer ? "an integer" : "a number", v);
+                return EXIT_USAGE;
+            }
+        } else if (!strcmp(a, "-o")) {
+            if (!mesh_output_ok(v)) {
+                say("-o '%s': unknown output extension (expected .off .obj .ply .stl .mesh "
+                    ".vtk .vtu)",
+                    v);
+                return EXIT_USAGE;
+            }
+            if (nouts == MAX_OUTPUTS) {
+                say("at most %d -o outputs", MAX_OUTPUTS);
+                return EXIT_USAGE;
+            }
+            outs[nouts++] = v;
+        } else {
+            const char **dst = a[2] == 'm' ? &metric : a[3] == 'o' ? &sol : &stats;
+            if (*dst) {
+                say("%s given twice", a);
+                return EXIT_USAGE;
+            }
+            *dst = v;
+        }
+    }
+    if (surface_check(&so)) return EXIT_USAGE;
+    if (nouts == 0) {
+        say("mesh needs -o OUT (.off .obj .ply .stl .mesh .vtk .vtu)");
+        return EXIT_USAGE;
+    }
+    if (sol && !has_extension(sol, ".sol")) {
+        say("--sol: the output '%s' must end with .sol", sol);
+        return EXIT_USAGE;
+    }
+    if (!metric) metric = "curvature";
+
+    anistar_context *ctx = anistar_context_new(NULL);
+    if (!ctx) {
+        say("out of memory");
+        return EXIT_ERROR;
+    }
+    int rc = EXIT_OK;
+    anistar_surface *s = NULL;
+    anistar_metric *m = NULL;
+    anistar_mesher *mr = NULL;
+    anistar_mesh *mesh = NULL;
+    if (anistar_metric_spec_check(ctx, metric)) {
+        say("--metric: %s", anistar_last_error(ctx));
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    rc = surface_make(ctx, &so, &s);
+    if (rc) goto done;
+    if (anistar_metric_from_spec(ctx, s, metric, &m) || anistar_mesher_new(ctx, s, m, &mr)) {
+        say("%s", anistar_last_error(ctx));
+        rc = EXIT_ERROR;
+        goto done;
+    }
+    for (size_t j = 0; j < NMESH_PARAMS; j++) {
+        if (has_value[j] && anistar_mesher_set(mr, mesh_params[j].key, value[j])) {
+            say("%s: %s", mesh_params[j].flag, anistar_last_error(ctx));
+            rc = EXIT_USAGE;
+            goto done;
+        }
+        if (anistar_mesher_get(mr, mesh_params[j].key, &value[j])) {
+            say("%s", anistar_last_error(ctx));
+            rc = EXIT_ERROR;
+            goto done;
+        }
+    }
+    progress_state prog = {0};
+    if (!quiet) anistar_mesher_set_progress(mr, mesh_progress, &prog);
+    anistar_status st = anistar_mesher_run(mr, &mesh);
+    if (prog.shown) fputc('\n', stderr);
+    if (st != ANISTAR_OK && st != ANISTAR_INCOMPLETE) {
+        say("%s", anistar_last_error(ctx));
+        rc = EXIT_ERROR;
+        goto done;
+    }
+    for (int j = 0; j < nouts; j++)
+        if (anistar_mesh_write(ctx, mesh, outs[j])) {
+            say("%s", anistar_last_error(ctx));
+            rc = EXIT_ERROR;
+            goto done;
+        }
+    if (sol && anistar_mesh_write(ctx, mesh, sol)) {
+        say("%s", anistar_last_error(ctx));
+        rc = EXIT_ERROR;
+        goto done;
+    }
+    anistar_mesh_stats ms;
+    anistar_mesh_get_stats(mesh, &ms);
+    if (stats && mesh_stats_write(stats, &ms, value, metric, st == ANISTAR_OK)) {
+        say("cannot write '%s'", stats);
+        rc = EXIT_ERROR;
+        goto done;
+    }
+    if (st == ANISTAR_INCOMPLETE) {
+        if (!quiet)
+            fprintf(stderr, "anistar: stopped at a limit: %zu vertices, %zu facets written, "
+                            "%zu inconsistent facets left out\n",
+                    ms.vertices, ms.facets, ms.inconsistent_facets);
+        rc = EXIT_INCOMPLETE;
+    }
+done:
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(mr);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+    return rc;
+}
+
 /* ---- commands ---------------------------------------------------------------------- */
 
 typedef struct command {
@@ -496,7 +751,11 @@ typedef struct command {
 
 static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
-    {"mesh", "mesh SURFACE [options] -o OUT [-o OUT2 ...]   (coming)", NULL},
+    {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
+             "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
+             "                 [--seed N] [--pick-tries N] [--quiet] [--sol FILE.sol]\n"
+             "                 [--stats FILE.json] -o OUT [-o OUT2 ...]",
+     cmd_mesh},
     {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]\n"
                "                 [--size WxH] [--edges on|off] [--up x|y|z] [--range MIN,MAX]\n"
                "                 [--sol FILE.sol]",
@@ -512,6 +771,11 @@ static void help(void) {
     printf("\nprobe prints JSON: f and its gradient at the point, the projection of the point\n"
            "on S, and there the normal, principal curvatures and directions, and the metric\n"
            "tensor (m11 m12 m13 m22 m23 m33; default metric: curvature).\n\n"
+           "mesh builds an anisotropic Delaunay mesh of SURFACE for --metric (default\n"
+           "curvature) and writes every -o OUT by extension (.off .obj .ply .stl .mesh .vtk\n"
+           ".vtu); --sol writes the vertex tensors (Medit), --stats a JSON of statistics.\n"
+           "Defaults: r0 0.1, gamma0 1.5, rho0 3, beta 2.5, delta 0.3, approx 0 (off),\n"
+           "max-vertices 0 and max-seconds 0 (no limit), seed 0, pick-tries 60.\n\n"
            "render draws a triangle mesh to a PNG image, each triangle coloured by --color:\n"
            "quality (radius-edge ratio, the default), anisotropy (sqrt(lmax/lmin) of the\n"
            "vertex tensors of a PLY or of --sol, else the triangle's aspect ratio) or none;\n"
@@ -535,7 +799,8 @@ static void help(void) {
     const char *name, *desc;
     for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)
         printf("  %-13s %s\n", name, desc);
-    printf("\nexit status: 0 done, 1 error, 2 usage error. See docs/cli.md.\n");
+    printf("\nexit status: 0 done, 1 error, 2 usage error, 3 (mesh) stopped at a limit\n"
+           "(output written, incomplete). See docs/cli.md.\n");
 }
 
 int main(int argc, char **argv) {

@@ -225,11 +225,12 @@ static void test_runtime_errors(void **state) {
         {"probe", "model.off", "--at", "0,0,0", NULL},
         /* sol metrics need a mesh surface */
         {"probe", "--builtin", "sphere", "--metric", "sol:m.sol", "--at", "1,0,0", NULL},
-        /* coming commands */
-        {"mesh", "--builtin", "sphere", "-o", "x.off", NULL},
+        /* mesh: no zero inside the bounding sphere */
+        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "-o",
+         "/tmp/anistar_cli_nosurface.off", NULL},
     };
     const char *msgs[] = {"no", "not finite", "bounding sphere", "cannot open 'model.off'",
-                          "not supported yet", "not available yet"};
+                          "not supported yet", "no"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         run(cases[i], r);

@@ -13,6 +13,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* ---- helpers ------------------------------------------------------------------------ */
@@ -1006,6 +1008,41 @@ static void test_hostile_headers(void **state) {
 }
 
 /* NaN/Inf voxels in binary float images, missing files, raw-reader argument checks. */
+/* Readers accept regular files only: a header naming a device or a FIFO as its data file
+ * (or a device named as the image itself) must fail at once, never block or read forever. */
+static void test_not_regular_files(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    char path[512], fifo[512], link[512];
+    const char *devs[] = {"/dev/zero", "/dev/null"};
+    for (size_t i = 0; i < 2; i++) {
+        char hdr[256];
+        snprintf(hdr, sizeof hdr,
+                 "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n"
+                 "data file: %s\n\n", devs[i]);
+        write_file(fx_path(f, "dev.nhdr", path), hdr, strlen(hdr), NULL, 0);
+        expect_fail(f, path, ANISTAR_EIO, "not a regular file");
+        snprintf(hdr, sizeof hdr,
+                 "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+                 "ElementDataFile = %s\n", devs[i]);
+        write_file(fx_path(f, "dev.mhd", path), hdr, strlen(hdr), NULL, 0);
+        expect_fail(f, path, ANISTAR_EIO, "not a regular file");
+    }
+    /* A FIFO with no writer would block an open-and-read forever. */
+    assert_int_equal(mkfifo(fx_path(f, "fifo.raw", fifo), 0600), 0);
+    const char *hdr = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n"
+                      "data file: fifo.raw\n\n";
+    write_file(fx_path(f, "fifo.nhdr", path), hdr, strlen(hdr), NULL, 0);
+    int fd = open(fifo, O_RDWR | O_NONBLOCK); /* keeps fopen from blocking on the open */
+    assert_true(fd >= 0);
+    expect_fail(f, path, ANISTAR_EIO, "not a regular file");
+    close(fd);
+    /* The image path itself naming a device. */
+    assert_int_equal(symlink("/dev/zero", fx_path(f, "zero.inr", link)), 0);
+    expect_fail(f, link, ANISTAR_EIO, "not a regular file");
+    fx_free(f);
+}
+
 static void test_nonfinite_missing_raw(void **state) {
     (void)state;
     fixture *f = fx_new();
@@ -1320,6 +1357,7 @@ int main(void) {
         cmocka_unit_test(test_roundtrip_all_types),
         cmocka_unit_test(test_format_variants),
         cmocka_unit_test(test_hostile_headers),
+        cmocka_unit_test(test_not_regular_files),
         cmocka_unit_test(test_nonfinite_missing_raw),
         cmocka_unit_test(test_fuzz_truncation_mutation),
         cmocka_unit_test(test_alloc_failures),

@@ -725,6 +725,17 @@ static void test_write_errors(void **state) {
     }
     assert_int_equal(as_mesh_write(t.ctx, tdir_file(&d, "x.xyz", buf), &m, NULL, 0),
                      ANISTAR_EFORMAT);
+    /* Readers accept regular files only (a device would never end). */
+    {
+        char zb[256];
+        const char *z = tdir_file(&d, "zero.off", zb);
+        assert_int_equal(symlink("/dev/zero", z), 0);
+        as_trimesh zm;
+        as_trimesh_init(&zm);
+        assert_int_equal(as_mesh_read(t.ctx, z, &zm), ANISTAR_EIO);
+        assert_non_null(strstr(anistar_last_error(t.ctx), "not a regular file"));
+        assert_int_equal(zm.nv, 0);
+    }
     const char *p = tdir_file(&d, "x.off", buf);
     m.tri[7] = (int32_t)m.nv;
     assert_int_equal(as_mesh_write(t.ctx, p, &m, NULL, 0), ANISTAR_EINVAL);

@@ -12,6 +12,7 @@
  * are plain spans into the buffer.
  */
 #include "io/image_io.h"
+#include "io/meshio.h"
 
 #include <errno.h>
 #include <math.h>
@@ -510,6 +511,12 @@ static anistar_status as_hr_open(anistar_context *ctx, const char *path, as_hrea
     hr->path = path;
     hr->f = fopen(path, "rb");
     if (!hr->f) return as_fail(ctx, ANISTAR_EIO, "%s: cannot open for reading", path);
+    const char *why = as_not_regular_file(hr->f);
+    if (why) {
+        fclose(hr->f);
+        hr->f = NULL;
+        return as_fail(ctx, ANISTAR_EIO, "%s: cannot read: %s", path, why);
+    }
     return ANISTAR_OK;
 }
 
@@ -744,6 +751,12 @@ static anistar_status as_load_voxels(anistar_context *ctx, const as_data_desc *d
             return as_fail(ctx, ANISTAR_EIO, "%s: cannot open for reading", hp);
         return as_fail(ctx, ANISTAR_EIO, "%s: cannot open the data file '%s' it names", hp,
                        d->data_path);
+    }
+    why = as_not_regular_file(f);
+    if (why) {
+        fclose(f);
+        return as_fail(ctx, ANISTAR_EIO, "%s: cannot read the data file '%s' it names: %s", hp,
+                       d->data_path, why);
     }
     as_image *img = NULL;
     char *text = NULL;

@@ -310,6 +310,11 @@ anistar_status as_file_read(anistar_context *ctx, const char *path, char **data,
     if (!f)
         return as_fail(ctx, ANISTAR_EIO, "cannot open '%s': %s", path,
                        errno ? strerror(errno) : "unknown error");
+    const char *why = as_not_regular_file(f);
+    if (why) {
+        fclose(f);
+        return as_fail(ctx, ANISTAR_EIO, "cannot read '%s': %s", path, why);
+    }
     /* A size hint, when the file is seekable; the loop below does not trust it. */
     size_t cap = 0, n = 0;
     if (fseek(f, 0, SEEK_END) == 0) {
@@ -865,6 +870,14 @@ void as_wfile_double(as_wfile *w, double x, char sep) {
     }
     if (sep) buf[n++] = sep;
     as_wfile_write(w, buf, (size_t)n);
+}
+
+const char *as_not_regular_file(FILE *f) {
+    struct stat sb;
+    if (fstat(fileno(f), &sb) != 0) return "cannot stat it";
+    if (S_ISREG(sb.st_mode)) return NULL;
+    if (S_ISDIR(sb.st_mode)) return strerror(EISDIR);
+    return "not a regular file (a device, pipe or socket)";
 }
 
 void as_wfile_abort(as_wfile *w) {

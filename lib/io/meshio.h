@@ -365,6 +365,12 @@ typedef struct as_wfile {
                     remove it; a pre-existing file, device or link is never removed) */
 } as_wfile;
 
+/* NULL if the open stream f is a regular file, otherwise why not ("Is a directory", "not a
+ * regular file"). Readers accept only regular files: a device, FIFO or directory (e.g. a
+ * hostile image header naming /dev/stdin or /dev/zero as its data file) could block or
+ * never end. */
+const char *as_not_regular_file(FILE *f);
+
 /* Create/truncate path for writing. EIO "cannot create 'path': ...". */
 anistar_status as_wfile_open(anistar_context *ctx, as_wfile *w, const char *path);
 /* Give up on a file opened by as_wfile_open: close it and remove it if (and only if) this

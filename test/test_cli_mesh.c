@@ -1,0 +1,310 @@
+/*
+ * test_cli_mesh.c — the `anistar mesh` command (examples/anistar.c, DESIGN.md 3), run as a
+ * separate process: a small mesh written in several formats with its .sol and --stats,
+ * the counts of the OFF checked against the JSON and against Euler's formula for a sphere;
+ * a run stopped at --max-vertices (exit 3, output still written); usage errors (exit 2)
+ * and runtime errors (exit 1), each with one line on stderr.
+ */
+#include "test_util.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define TOOL AS_TEST_BUILD_DIR "/anistar"
+
+typedef struct run_result {
+    int status; /* exit code, or -1 if the tool did not exit normally */
+    char out[4096];
+    char err[4096];
+} run_result;
+
+static void slurp(int fd, char *buf, size_t cap) {
+    size_t n = 0;
+    lseek(fd, 0, SEEK_SET);
+    for (;;) {
+        ssize_t r = read(fd, buf + n, cap - 1 - n);
+        if (r <= 0) break;
+        n += (size_t)r;
+        if (n + 1 >= cap) break;
+    }
+    buf[n] = '\0';
+}
+
+/* Run the tool with args (NULL-terminated, without argv[0]). */
+static void run(const char *const *args, run_result *res) {
+    char outname[] = "/tmp/anistar_clim_out_XXXXXX", errname[] = "/tmp/anistar_clim_err_XXXXXX";
+    int fo = mkstemp(outname), fe = mkstemp(errname);
+    assert_true(fo >= 0 && fe >= 0);
+    const char *argv[40];
+    int n = 0;
+    argv[n++] = TOOL;
+    for (int i = 0; args[i] && n < 39; i++) argv[n++] = args[i];
+    argv[n] = NULL;
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        dup2(fo, 1);
+        dup2(fe, 2);
+        execv(TOOL, (char *const *)argv);
+        _exit(127);
+    }
+    int wst = 0;
+    assert_true(waitpid(pid, &wst, 0) == pid);
+    res->status = WIFEXITED(wst) ? WEXITSTATUS(wst) : -1;
+    slurp(fo, res->out, sizeof res->out);
+    slurp(fe, res->err, sizeof res->err);
+    close(fo);
+    close(fe);
+    unlink(outname);
+    unlink(errname);
+}
+
+/* stderr holds exactly one line starting with "anistar: ". */
+static void assert_one_line(const run_result *r) {
+    size_t len = strlen(r->err);
+    if (!(len > 10 && r->err[len - 1] == '\n' && strchr(r->err, '\n') == r->err + len - 1 &&
+          !strncmp(r->err, "anistar: ", 9)))
+        fail_msg("stderr is not one 'anistar: ...' line: '%s'", r->err);
+}
+
+/* The whole file (NUL-terminated, to free), or NULL if it cannot be read. */
+static char *read_all(const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 1 << 16, n = 0;
+    char *buf = malloc(cap);
+    assert_non_null(buf);
+    for (;;) {
+        if (n + 1 >= cap) {
+            cap *= 2;
+            buf = realloc(buf, cap);
+            assert_non_null(buf);
+        }
+        size_t r = fread(buf + n, 1, cap - 1 - n, f);
+        if (r == 0) break;
+        n += r;
+    }
+    buf[n] = '\0';
+    fclose(f);
+    return buf;
+}
+
+/* The value text after "key": in json (its first occurrence), or NULL. */
+static const char *json_value(const char *json, const char *key) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(json, pat);
+    if (!p) return NULL;
+    p += strlen(pat);
+    while (*p == ' ') p++;
+    return p;
+}
+
+static double json_number(const char *json, const char *key) {
+    const char *p = json_value(json, key);
+    if (!p) fail_msg("--stats lacks \"%s\"", key);
+    char *end;
+    double v = strtod(p, &end);
+    if (end == p) fail_msg("--stats \"%s\" is not a number", key);
+    return v;
+}
+
+static int json_bool(const char *json, const char *key) {
+    const char *p = json_value(json, key);
+    if (!p) fail_msg("--stats lacks \"%s\"", key);
+    if (!strncmp(p, "true", 4)) return 1;
+    if (!strncmp(p, "false", 5)) return 0;
+    fail_msg("--stats \"%s\" is not a boolean", key);
+    return -1;
+}
+
+/* The counts of an OFF file; checks every face is a triangle with indices in range and
+ * that no two faces share the same sorted triple. Returns 0 or -1. */
+static int off_counts(const char *path, long *nv, long *nf) {
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    char head[8];
+    long ne;
+    if (fscanf(f, "%7s %ld %ld %ld", head, nv, nf, &ne) != 4 || strcmp(head, "OFF")) {
+        fclose(f);
+        return -1;
+    }
+    for (long i = 0; i < *nv; i++) {
+        double x, y, z;
+        if (fscanf(f, "%lf %lf %lf", &x, &y, &z) != 3 || !isfinite(x + y + z)) {
+            fclose(f);
+            return -1;
+        }
+    }
+    for (long i = 0; i < *nf; i++) {
+        long k, a, b, c;
+        if (fscanf(f, "%ld %ld %ld %ld", &k, &a, &b, &c) != 4 || k != 3 || a < 0 || b < 0 ||
+            c < 0 || a >= *nv || b >= *nv || c >= *nv || a == b || b == c || a == c) {
+            fclose(f);
+            return -1;
+        }
+    }
+    fclose(f);
+    return 0;
+}
+
+static void test_mesh_sphere(void **state) {
+    (void)state;
+    const char *off = "/tmp/anistar_clim_s.off", *vtu = "/tmp/anistar_clim_s.vtu",
+               *sol = "/tmp/anistar_clim_s.sol", *json = "/tmp/anistar_clim_s.json";
+    unlink(off), unlink(vtu), unlink(sol), unlink(json);
+    const char *args[] = {"mesh", "--builtin", "sphere", "--metric", "euclidean", "--r0", "0.3",
+                          "--seed", "7", "-o", off, "-o", vtu, "--sol", sol, "--stats", json,
+                          NULL};
+    run_result *r = test_malloc(sizeof *r);
+    run(args, r);
+    if (r->status != 0) fail_msg("exit %d, stderr '%s'", r->status, r->err);
+    long nv, nf;
+    assert_int_equal(off_counts(off, &nv, &nf), 0);
+    assert_true(nv >= 4);
+    assert_int_equal(nf, 2 * nv - 4); /* a closed genus-0 triangle mesh */
+
+    char *js = read_all(json);
+    assert_non_null(js);
+    assert_true(json_number(js, "vertices") == (double)nv);
+    assert_true(json_number(js, "facets") == (double)nf);
+    assert_true(json_number(js, "inconsistent_facets") == 0);
+    assert_true(json_number(js, "euler_characteristic") == 2);
+    assert_int_equal(json_bool(js, "closed_manifold"), 1);
+    assert_int_equal(json_bool(js, "complete"), 1);
+    double total = json_number(js, "total"), init = json_number(js, "init"),
+           refine = json_number(js, "refine"), output = json_number(js, "output");
+    assert_true(total >= 0 && init >= 0 && refine >= 0 && output >= 0);
+    assert_true(init + refine + output <= total * 1.01 + 1e-3);
+    double ins = json_number(js, "initial") + json_number(js, "rule1") +
+                 json_number(js, "rule2") + json_number(js, "rule3");
+    assert_true(ins >= (double)nv); /* every output vertex was inserted */
+    assert_true(json_number(js, "tries") >= json_number(js, "failures"));
+    /* the bounds hold on a finished mesh (euclidean: one metric, no distortion) */
+    double rho = json_number(js, "rho_max"), rmax = json_number(js, "r_max");
+    assert_true(rho > 0.5 && rho <= 3.0 + 1e-9); /* rho0 defaults to 3 */
+    assert_true(rmax > 0 && rmax <= 0.3 + 1e-9);
+    assert_true(fabs(json_number(js, "gamma_max") - 1) < 1e-9);
+    assert_non_null(json_value(js, "parameters"));
+    assert_true(json_number(js, "r0") == 0.3);
+    assert_true(json_number(js, "seed") == 7);
+    assert_non_null(strstr(js, "\"euclidean\""));
+    free(js);
+
+    /* the .vtu and .sol describe the same mesh */
+    char *vt = read_all(vtu);
+    assert_non_null(vt);
+    char want[64];
+    snprintf(want, sizeof want, "NumberOfPoints=\"%ld\"", nv);
+    assert_non_null(strstr(vt, want));
+    snprintf(want, sizeof want, "NumberOfCells=\"%ld\"", nf);
+    assert_non_null(strstr(vt, want));
+    free(vt);
+    char *so = read_all(sol);
+    assert_non_null(so);
+    const char *p = strstr(so, "SolAtVertices");
+    assert_non_null(p);
+    assert_true(strtol(p + strlen("SolAtVertices"), NULL, 10) == nv);
+    free(so);
+    assert_string_equal(r->out, "");
+    unlink(off), unlink(vtu), unlink(sol), unlink(json);
+    test_free(r);
+}
+
+static void test_mesh_limit(void **state) {
+    (void)state;
+    const char *off = "/tmp/anistar_clim_l.off", *json = "/tmp/anistar_clim_l.json";
+    unlink(off), unlink(json);
+    const char *args[] = {"mesh", "--builtin", "sphere", "--metric", "euclidean", "--r0", "0.3",
+                          "--max-vertices", "40", "--quiet", "-o", off, "--stats", json, NULL};
+    run_result *r = test_malloc(sizeof *r);
+    run(args, r);
+    if (r->status != 3) fail_msg("exit %d, stderr '%s'", r->status, r->err);
+    assert_string_equal(r->err, ""); /* --quiet */
+    long nv, nf;
+    assert_int_equal(off_counts(off, &nv, &nf), 0);
+    char *js = read_all(json);
+    assert_non_null(js);
+    assert_true(json_number(js, "vertices") == (double)nv);
+    assert_true(json_number(js, "facets") == (double)nf);
+    assert_int_equal(json_bool(js, "complete"), 0);
+    /* stopped before the size rule was satisfied: some facet is still too large (or some
+     * facets were left out as inconsistent) */
+    assert_true(nv <= 40);
+    assert_true(json_number(js, "r_max") > 0.3 || json_number(js, "inconsistent_facets") > 0);
+    assert_true(json_number(js, "max_vertices") == 40);
+    free(js);
+    unlink(off), unlink(json);
+    test_free(r);
+}
+
+static void test_usage_errors(void **state) {
+    (void)state;
+#define S "mesh", "--builtin", "sphere"
+    const char *cases[][12] = {
+        {S, "--frobnicate", "-o", "/tmp/x.off", NULL},
+        {S, NULL},                                      /* missing -o */
+        {S, "--r0", "abc", "-o", "/tmp/x.off", NULL},   /* bad number */
+        {S, "--r0", "0", "-o", "/tmp/x.off", NULL},     /* r0 <= 0 */
+        {S, "--gamma0", "1", "-o", "/tmp/x.off", NULL}, /* gamma0 <= 1 */
+        {S, "--rho0", "0.5", "-o", "/tmp/x.off", NULL}, /* rho0 <= 1 */
+        {S, "--delta", "1", "-o", "/tmp/x.off", NULL},  /* delta outside (0, 1) */
+        {S, "--delta", "0", "-o", "/tmp/x.off", NULL},
+        {S, "--beta", "0.9", "-o", "/tmp/x.off", NULL}, /* beta < 1 */
+        {S, "--optimize", "-o", "/tmp/x.off", NULL},
+        {S, "-o", "/tmp/x.xyz", NULL}, /* unknown output extension */
+        {S, "--max-vertices", "1.5", "-o", "/tmp/x.off", NULL},
+        {S, "--metric", "bogus", "-o", "/tmp/x.off", NULL},
+        {S, "--r0", NULL},
+    };
+#undef S
+    const char *msgs[] = {"unknown option", "-o",       "--r0",     "--r0",     "--gamma0",
+                          "--rho0",         "--delta",  "--delta",  "--beta",   "--optimize",
+                          "extension",      "--max-vertices",       "--metric", "needs a value"};
+    run_result *r = test_malloc(sizeof *r);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        run(cases[i], r);
+        if (r->status != 2) fail_msg("case %zu: exit %d, stderr '%s'", i, r->status, r->err);
+        assert_one_line(r);
+        if (!strstr(r->err, msgs[i])) fail_msg("case %zu: '%s' lacks '%s'", i, r->err, msgs[i]);
+        assert_string_equal(r->out, "");
+    }
+    test_free(r);
+}
+
+static void test_runtime_errors(void **state) {
+    (void)state;
+    const char *cases[][12] = {
+        /* a mesh file that does not exist */
+        {"mesh", "/tmp/anistar_clim_missing.off", "-o", "/tmp/anistar_clim_e.off", NULL},
+        /* no zero of f inside the bounding sphere (ENOSURFACE) */
+        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "-o",
+         "/tmp/anistar_clim_e.off", NULL},
+    };
+    const char *msgs[] = {"anistar_clim_missing.off", "no"};
+    run_result *r = test_malloc(sizeof *r);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        unlink("/tmp/anistar_clim_e.off");
+        run(cases[i], r);
+        if (r->status != 1) fail_msg("case %zu: exit %d, stderr '%s'", i, r->status, r->err);
+        assert_one_line(r);
+        if (!strstr(r->err, msgs[i])) fail_msg("case %zu: '%s' lacks '%s'", i, r->err, msgs[i]);
+        assert_string_equal(r->out, "");
+        assert_true(access("/tmp/anistar_clim_e.off", F_OK) != 0); /* nothing written */
+    }
+    test_free(r);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_mesh_sphere),
+        cmocka_unit_test(test_mesh_limit),
+        cmocka_unit_test(test_usage_errors),
+        cmocka_unit_test(test_runtime_errors),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

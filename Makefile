@@ -31,7 +31,7 @@ AR ?= ar
 CFLAGS ?= -O2 -g
 WERROR ?= -Werror
 # Flags that every variant needs: strict C11, strict IEEE arithmetic (the exact predicates
-# depend on it: never -ffast-math), hidden internal symbols.
+# depend on it: no fast-math style flags, ever), hidden internal symbols.
 BASE_CFLAGS := -std=c11 -Wall -Wextra -Wpedantic $(WERROR) -ffp-contract=off \
                -fvisibility=hidden -fPIC -fno-strict-aliasing
 VARIANT_CFLAGS ?=

@@ -15,60 +15,12 @@
 
 #define TOOL AS_TEST_BUILD_DIR "/anistar"
 
-typedef struct run_result {
-    int status; /* exit code, or -1 if the tool did not exit normally */
-    char out[16384];
-    char err[4096];
-} run_result;
-
-static void slurp(int fd, char *buf, size_t cap) {
-    size_t n = 0;
-    lseek(fd, 0, SEEK_SET);
-    for (;;) {
-        ssize_t r = read(fd, buf + n, cap - 1 - n);
-        if (r <= 0) break;
-        n += (size_t)r;
-        if (n + 1 >= cap) break;
-    }
-    buf[n] = '\0';
-}
+typedef tu_run_result run_result;
 
 /* Run the tool with args (NULL-terminated, without argv[0]). */
-static void run(const char *const *args, run_result *res) {
-    char outname[] = "/tmp/anistar_cli_out_XXXXXX", errname[] = "/tmp/anistar_cli_err_XXXXXX";
-    int fo = mkstemp(outname), fe = mkstemp(errname);
-    assert_true(fo >= 0 && fe >= 0);
-    const char *argv[32];
-    int n = 0;
-    argv[n++] = TOOL;
-    for (int i = 0; args[i] && n < 31; i++) argv[n++] = args[i];
-    argv[n] = NULL;
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        dup2(fo, 1);
-        dup2(fe, 2);
-        execv(TOOL, (char *const *)argv);
-        _exit(127);
-    }
-    int wst = 0;
-    assert_true(waitpid(pid, &wst, 0) == pid);
-    res->status = WIFEXITED(wst) ? WEXITSTATUS(wst) : -1;
-    slurp(fo, res->out, sizeof res->out);
-    slurp(fe, res->err, sizeof res->err);
-    close(fo);
-    close(fe);
-    unlink(outname);
-    unlink(errname);
-}
+static void run(const char *const *args, run_result *res) { tu_run(TOOL, args, res); }
 
-/* stderr holds exactly one line starting with "anistar: ". */
-static void assert_one_line(const run_result *r) {
-    size_t len = strlen(r->err);
-    if (!(len > 10 && r->err[len - 1] == '\n' && strchr(r->err, '\n') == r->err + len - 1 &&
-          !strncmp(r->err, "anistar: ", 9)))
-        fail_msg("stderr is not one 'anistar: ...' line: '%s'", r->err);
-}
+static void assert_one_line(const run_result *r) { tu_assert_one_line(r); }
 
 /* The numbers of the JSON array after "key": [ ... ] (nested brackets flattened). */
 static int json_numbers(const char *json, const char *key, double *v, int max) {

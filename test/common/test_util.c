@@ -1,6 +1,11 @@
 #include "test_util.h"
 
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static void *tu_alloc_fn(void *user, void *ptr, size_t old_size, size_t new_size) {
     tu_alloc *a = user;
@@ -51,3 +56,53 @@ uint64_t tu_rng_u64(tu_rng *r) {
 double tu_rng_unit(tu_rng *r) { return (double)(tu_rng_u64(r) >> 11) * 0x1.0p-53; }
 
 double tu_rng_range(tu_rng *r, double lo, double hi) { return lo + (hi - lo) * tu_rng_unit(r); }
+
+static void tu_slurp(int fd, char *buf, size_t cap) {
+    size_t n = 0;
+    lseek(fd, 0, SEEK_SET);
+    for (;;) {
+        ssize_t r = read(fd, buf + n, cap - 1 - n);
+        if (r <= 0) break;
+        n += (size_t)r;
+        if (n + 1 >= cap) break;
+    }
+    buf[n] = '\0';
+}
+
+void tu_run(const char *program, const char *const *args, tu_run_result *res) {
+    char outname[] = "/tmp/anistar_run_out_XXXXXX", errname[] = "/tmp/anistar_run_err_XXXXXX";
+    int fo = mkstemp(outname), fe = mkstemp(errname);
+    assert_true(fo >= 0 && fe >= 0);
+    const char *argv[64];
+    int n = 0;
+    argv[n++] = program;
+    for (int i = 0; args[i]; i++) {
+        assert_true(n < 63);
+        argv[n++] = args[i];
+    }
+    argv[n] = NULL;
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        dup2(fo, 1);
+        dup2(fe, 2);
+        execv(program, (char *const *)argv);
+        _exit(127);
+    }
+    int wst = 0;
+    assert_true(waitpid(pid, &wst, 0) == pid);
+    res->status = WIFEXITED(wst) ? WEXITSTATUS(wst) : -1;
+    tu_slurp(fo, res->out, sizeof res->out);
+    tu_slurp(fe, res->err, sizeof res->err);
+    close(fo);
+    close(fe);
+    unlink(outname);
+    unlink(errname);
+}
+
+void tu_assert_one_line(const tu_run_result *r) {
+    size_t len = strlen(r->err);
+    if (!(len > 10 && r->err[len - 1] == '\n' && strchr(r->err, '\n') == r->err + len - 1 &&
+          !strncmp(r->err, "anistar: ", 9)))
+        fail_msg("stderr is not one 'anistar: ...' line: '%s'", r->err);
+}

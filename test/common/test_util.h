@@ -15,9 +15,37 @@
 
 #ifndef AS_TEST_BUILD_DIR
 #define AS_TEST_BUILD_DIR "build"
+/* Running the command-line tool as a separate process (tests of examples/anistar.c). */
+typedef struct tu_run_result {
+    int status; /* exit code, or -1 if the program did not exit normally */
+    char out[16384];
+    char err[4096];
+} tu_run_result;
+
+/* Run program with args (NULL-terminated, without argv[0]; at most 62), capturing stdout
+ * and stderr (truncated to the buffers). */
+void tu_run(const char *program, const char *const *args, tu_run_result *res);
+
+/* Fail unless stderr holds exactly one line starting with "anistar: ". */
+void tu_assert_one_line(const tu_run_result *r);
+
 #endif
 #ifndef AS_TEST_DATA_DIR
 #define AS_TEST_DATA_DIR "test/data"
+/* Running the command-line tool as a separate process (tests of examples/anistar.c). */
+typedef struct tu_run_result {
+    int status; /* exit code, or -1 if the program did not exit normally */
+    char out[16384];
+    char err[4096];
+} tu_run_result;
+
+/* Run program with args (NULL-terminated, without argv[0]; at most 62), capturing stdout
+ * and stderr (truncated to the buffers). */
+void tu_run(const char *program, const char *const *args, tu_run_result *res);
+
+/* Fail unless stderr holds exactly one line starting with "anistar: ". */
+void tu_assert_one_line(const tu_run_result *r);
+
 #endif
 
 /* A counting allocator: fail_after < 0 never fails; otherwise the allocation number
@@ -42,5 +70,19 @@ typedef struct tu_rng {
 uint64_t tu_rng_u64(tu_rng *r);
 double tu_rng_unit(tu_rng *r); /* uniform in [0, 1) with 53 random bits */
 double tu_rng_range(tu_rng *r, double lo, double hi);
+
+/* Running the command-line tool as a separate process (tests of examples/anistar.c). */
+typedef struct tu_run_result {
+    int status; /* exit code, or -1 if the program did not exit normally */
+    char out[16384];
+    char err[4096];
+} tu_run_result;
+
+/* Run program with args (NULL-terminated, without argv[0]; at most 62), capturing stdout
+ * and stderr (truncated to the buffers). */
+void tu_run(const char *program, const char *const *args, tu_run_result *res);
+
+/* Fail unless stderr holds exactly one line starting with "anistar: ". */
+void tu_assert_one_line(const tu_run_result *r);
 
 #endif

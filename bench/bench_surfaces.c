@@ -15,6 +15,8 @@
 
 #include <math.h>
 #include <stdint.h>
+#include "bench_util.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,23 +26,10 @@
 #define AS_BENCH_DATA_DIR "test/data"
 #endif
 
-static double now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts); /* CPU time: robust on a shared machine */
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
+static double now(void) { return bench_cpu_seconds(); } /* CPU time: robust when shared */
 
-typedef struct rng {
-    uint64_t s;
-} rng;
-
-static double unit(rng *r) {
-    uint64_t z = (r->s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+typedef bench_rng rng;
+static double unit(rng *r) { return bench_unit(r); }
 
 static void print_head(const char *title) {
     printf("\n%-52s %14s %12s  %s\n", title, "per second", "us / call", "notes");
@@ -55,9 +44,7 @@ static void print_time(const char *what, double secs, const char *note) {
 }
 
 static void die(anistar_context *ctx, anistar_status st, const char *what) {
-    fprintf(stderr, "bench_surfaces: %s failed: %s (%s)\n", what, anistar_status_name(st),
-            anistar_last_error(ctx));
-    exit(1);
+    bench_die("bench_surfaces", ctx, st, what);
 }
 
 /* A random point of the bounding box of the sphere (center, radius). */

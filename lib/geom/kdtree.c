@@ -599,7 +599,7 @@ static int as_kd_range_slots(anistar_context *ctx, const as_kdtree *kd, size_t b
 }
 
 static anistar_status as_kd_range_query(anistar_context *ctx, const as_kdtree *kd,
-                                        const as_kd_range *rg, as_idlist *out) {
+                                        const as_kd_range *rg, int sorted, as_idlist *out) {
     out->n = 0;
     uint32_t st[AS_KD_STACK];
     for (size_t t = 0; t < kd->ntrees; t++) {
@@ -623,7 +623,7 @@ static anistar_status as_kd_range_query(anistar_context *ctx, const as_kdtree *k
     if (bbeg < kd->n && as_kd_range_class(rg, kd->blo, kd->bhi) != 0 &&
         as_kd_range_slots(ctx, kd, bbeg, kd->n - bbeg, 0, rg, out))
         return as_fail(ctx, ANISTAR_ENOMEM, "kdtree: out of memory in a query");
-    as_ids_sort(out->ids, out->n);
+    if (sorted) as_ids_sort(out->ids, out->n);
     return ANISTAR_OK;
 }
 
@@ -636,11 +636,16 @@ anistar_status as_kdtree_radius(anistar_context *ctx, const as_kdtree *kd, const
     rg.ball = 1;
     memcpy(rg.q, q, sizeof rg.q);
     rg.r2 = r * r;
-    return as_kd_range_query(ctx, kd, &rg, out);
+    return as_kd_range_query(ctx, kd, &rg, 1, out);
 }
 
 anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
                              const double hi[3], as_idlist *out) {
+    return as_kdtree_box_any(ctx, kd, lo, hi, 1, out);
+}
+
+anistar_status as_kdtree_box_any(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
+                                 const double hi[3], int sorted, as_idlist *out) {
     out->n = 0;
     for (int a = 0; a < 3; a++)
         if (!(lo[a] <= hi[a])) return ANISTAR_OK; /* empty (or NaN) box */
@@ -648,7 +653,7 @@ anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const do
     memset(&rg, 0, sizeof rg);
     memcpy(rg.lo, lo, sizeof rg.lo);
     memcpy(rg.hi, hi, sizeof rg.hi);
-    return as_kd_range_query(ctx, kd, &rg, out);
+    return as_kd_range_query(ctx, kd, &rg, sorted, out);
 }
 
 /* ---- validation ----------------------------------------------------------------------- */

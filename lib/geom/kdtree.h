@@ -120,6 +120,11 @@ anistar_status as_kdtree_radius(anistar_context *ctx, const as_kdtree *kd, const
 anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
                              const double hi[3], as_idlist *out);
 
+/* as_kdtree_box, sorted or in the tree's traversal order (sorted == 0: cheaper; the order
+ * is still a deterministic function of the insertion history). */
+anistar_status as_kdtree_box_any(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
+                                 const double hi[3], int sorted, as_idlist *out);
+
 /* Check the invariants (boxes contain their points, leaf sizes, preorder layout, tree
  * sizes of the forest, ids >= 0). Returns 0 if valid, -1 otherwise. For tests. */
 int as_kdtree_check(const as_kdtree *kd);

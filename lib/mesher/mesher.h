@@ -20,6 +20,7 @@ typedef struct as_mesher_params {
     uint64_t seed;
     int32_t pick_tries;
     int32_t initial_points; /* initial sites wanted (0: automatic) */
+    int32_t optimize;       /* 1: vertex optimisation after a complete run (optimize.c) */
 } as_mesher_params;
 
 void as_mesher_params_default(as_mesher_params *p);

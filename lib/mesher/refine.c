@@ -20,6 +20,7 @@ void as_mesher_params_default(as_mesher_params *p) {
     p->max_vertices = 0;
     p->seed = 0;
     p->pick_tries = 60;
+    p->optimize = 0;
 }
 
 /* ---- queues ------------------------------------------------------------------------- */

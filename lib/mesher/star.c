@@ -33,6 +33,7 @@ void as_star_destroy(anistar_context *ctx, as_star *st) {
     as_free(ctx, st->tflag, st->cap_tflag);
     as_free(ctx, st->rf, (size_t)st->cap_rf * sizeof *st->rf);
     as_free(ctx, st->itet, (size_t)st->cap_itet * sizeof *st->itet);
+    as_free(ctx, st->zone, (size_t)st->cap_zone * sizeof *st->zone);
     memset(st, 0, sizeof *st);
 }
 
@@ -256,6 +257,15 @@ static anistar_status grow_i32(anistar_context *ctx, int32_t **p, int32_t *cap, 
     return ANISTAR_OK;
 }
 
+static anistar_status grow_zone(anistar_context *ctx, as_star *st, int32_t need) {
+    if (need <= st->cap_zone) return ANISTAR_OK;
+    size_t c = (size_t)st->cap_zone;
+    if (as_grow(ctx, (void **)&st->zone, &c, (size_t)need, sizeof *st->zone))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    st->cap_zone = (int32_t)c;
+    return ANISTAR_OK;
+}
+
 static void box_add(double lo[3], double hi[3], const double c[3], const double h[3]) {
     for (int k = 0; k < 3; k++) {
         double a = c[k] - h[k], b = c[k] + h[k];
@@ -342,6 +352,21 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     /* box of the conflict zone */
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     if (st->closed) {
+        /* design: the surface balls in the stretched frame, and one ball around F_v v
+         * holding them all, so that most candidates are rejected by one distance */
+        if ((s = grow_zone(ctx, st, 4 * st->nrf)) != ANISTAR_OK) return s;
+        const double *V = as_del3_point(d, st->vloc);
+        double zr = 0;
+        for (int32_t i = 0; i < st->nrf; i++) {
+            double *z = st->zone + 4 * (size_t)i, dd[3];
+            as_metric_apply(mf, st->rf[i].c, z);
+            z[3] = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            sub3(z, V, dd);
+            double e = sqrt(dot3(dd, dd)) + z[3];
+            if (e > zr) zr = e;
+        }
+        zr *= 1 + 4 * AS_STAR_SLACK;
+        st->zr2 = zr * zr;
         for (int32_t i = 0; i < st->nrf; i++) {
             double h[3];
             as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
@@ -537,11 +562,17 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
     as_metric_apply(mf, p, y);
     const as_del3 *d = &st->del;
     if (st->closed) {
+        /* design: a site outside every inflated surface ball leaves the surface star
+         * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
+        const double *V = as_del3_point(d, st->vloc);
+        double dd[3];
+        sub3(y, V, dd);
+        if (!(dot3(dd, dd) < st->zr2)) return 0;
         int near = 0;
         for (int32_t i = 0; i < st->nrf && !near; i++) {
-            const as_rfacet *f = &st->rf[i];
-            double dist = as_metric_dist(mf, f->c, p);
-            near = dist < f->r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            const double *z = st->zone + 4 * (size_t)i;
+            sub3(y, z, dd);
+            near = dot3(dd, dd) < z[3] * z[3];
         }
         if (!near) return 0;
     }

@@ -61,6 +61,12 @@ typedef struct as_star {
     int32_t *itet;      /* the live tets incident to v (after the last update) */
     int32_t nitet, cap_itet;
     double lo[3], hi[3];/* box of the conflict zone */
+    /* closed stars: the inflated zone in the stretched frame, for the conflict filter:
+     * zone[4i..4i+2] = F_v c of facet i, zone[4i+3] = its inflated radius; the whole zone
+     * lies in the ball of center F_v v and squared radius zr2 */
+    double *zone;
+    int32_t cap_zone;
+    double zr2;
 } as_star;
 
 /* Scratch shared by every star of one owner (never per star). */

@@ -112,23 +112,7 @@ int as_metric_frame_from_eigen(as_metric_frame *mf, const double u[9], const dou
 
 /* y = A x for a row-major 3x3 A, each row summed left to right: ((a0 x0 + a1 x1) + a2 x2).
  * With -ffp-contract=off this is one fixed sequence of roundings. */
-static inline void as_metric_mul(const double a[9], const double x[3], double y[3]) {
-    double x0 = x[0], x1 = x[1], x2 = x[2];
-    double y0 = a[0] * x0 + a[1] * x1 + a[2] * x2;
-    double y1 = a[3] * x0 + a[4] * x1 + a[5] * x2;
-    double y2 = a[6] * x0 + a[7] * x1 + a[8] * x2;
-    y[0] = y0;
-    y[1] = y1;
-    y[2] = y2;
-}
 
-void as_metric_apply(const as_metric_frame *mf, const double x[3], double y[3]) {
-    as_metric_mul(mf->f, x, y);
-}
-
-void as_metric_unapply(const as_metric_frame *mf, const double x[3], double y[3]) {
-    as_metric_mul(mf->finv, x, y);
-}
 
 /* |v| for a 3-vector, without spurious overflow or underflow. */
 static double as_norm3(const double v[3]) {
@@ -144,7 +128,7 @@ static double as_norm3(const double v[3]) {
 
 double as_metric_dist(const as_metric_frame *mf, const double a[3], const double b[3]) {
     double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]}, y[3];
-    as_metric_mul(mf->f, d, y);
+    as_metric_mul3(mf->f, d, y);
     return as_norm3(y);
 }
 

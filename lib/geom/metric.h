@@ -29,9 +29,22 @@ int as_metric_frame_from_eigen(as_metric_frame *mf, const double u[9], const dou
 
 /* y = F x, always computed the same way: y_i = (f_i0 x_0 + f_i1 x_1) + f_i2 x_2, so
  * stretched coordinates are reproducible bit for bit (y may alias x). */
-void as_metric_apply(const as_metric_frame *mf, const double x[3], double y[3]);
+static inline void as_metric_mul3(const double a[9], const double x[3], double y[3]) {
+    double x0 = x[0], x1 = x[1], x2 = x[2];
+    double y0 = (a[0] * x0 + a[1] * x1) + a[2] * x2;
+    double y1 = (a[3] * x0 + a[4] * x1) + a[5] * x2;
+    double y2 = (a[6] * x0 + a[7] * x1) + a[8] * x2;
+    y[0] = y0;
+    y[1] = y1;
+    y[2] = y2;
+}
+static inline void as_metric_apply(const as_metric_frame *mf, const double x[3], double y[3]) {
+    as_metric_mul3(mf->f, x, y);
+}
 /* y = F^-1 x. */
-void as_metric_unapply(const as_metric_frame *mf, const double x[3], double y[3]);
+static inline void as_metric_unapply(const as_metric_frame *mf, const double x[3], double y[3]) {
+    as_metric_mul3(mf->finv, x, y);
+}
 /* d_M(a, b) = |F (a - b)|, without spurious overflow or underflow; d(a, b) == d(b, a). */
 double as_metric_dist(const as_metric_frame *mf, const double a[3], const double b[3]);
 

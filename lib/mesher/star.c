@@ -34,6 +34,7 @@ void as_star_destroy(anistar_context *ctx, as_star *st) {
     as_free(ctx, st->rf, (size_t)st->cap_rf * sizeof *st->rf);
     as_free(ctx, st->itet, (size_t)st->cap_itet * sizeof *st->itet);
     as_free(ctx, st->zone, (size_t)st->cap_zone * sizeof *st->zone);
+    as_free(ctx, st->isph, (size_t)st->cap_isph * sizeof *st->isph);
     memset(st, 0, sizeof *st);
 }
 
@@ -257,12 +258,12 @@ static anistar_status grow_i32(anistar_context *ctx, int32_t **p, int32_t *cap, 
     return ANISTAR_OK;
 }
 
-static anistar_status grow_zone(anistar_context *ctx, as_star *st, int32_t need) {
-    if (need <= st->cap_zone) return ANISTAR_OK;
-    size_t c = (size_t)st->cap_zone;
-    if (as_grow(ctx, (void **)&st->zone, &c, (size_t)need, sizeof *st->zone))
+static anistar_status grow_dbl(anistar_context *ctx, double **a, int32_t *cap, int32_t need) {
+    if (need <= *cap) return ANISTAR_OK;
+    size_t c = (size_t)*cap;
+    if (as_grow(ctx, (void **)a, &c, (size_t)need, sizeof **a))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    st->cap_zone = (int32_t)c;
+    *cap = (int32_t)c;
     return ANISTAR_OK;
 }
 
@@ -349,12 +350,32 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, (int32_t)sc->tets.n)) != ANISTAR_OK) return s;
     memcpy(st->itet, sc->tets.a, sc->tets.n * sizeof *st->itet);
     st->nitet = (int32_t)sc->tets.n;
+    /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
+     * center c* (R the true radius); with R' = |c - v| the computed radius,
+     * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
+     * the rounding of these few operations far below the 1e-9 margin) proves y strictly
+     * outside the true sphere: not in conflict, whatever the perturbation. */
+    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * st->nitet)) != ANISTAR_OK) return s;
+    {
+        const double *V = as_del3_point(d, st->vloc);
+        for (int32_t i = 0; i < st->nitet; i++) {
+            double *S = st->isph + 4 * (size_t)i, dd[3];
+            if (as_del3_circumcenter(d, st->itet[i], S) != 0) {
+                S[0] = S[1] = S[2] = 0;
+                S[3] = -1;
+                continue;
+            }
+            sub3(S, V, dd);
+            double R = sqrt(dot3(dd, dd)) * (1 + 1e-9);
+            S[3] = isfinite(R) ? R * R : -1;
+        }
+    }
     /* box of the conflict zone */
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     if (st->closed) {
         /* design: the surface balls in the stretched frame, and one ball around F_v v
          * holding them all, so that most candidates are rejected by one distance */
-        if ((s = grow_zone(ctx, st, 4 * st->nrf)) != ANISTAR_OK) return s;
+        if ((s = grow_dbl(ctx, &st->zone, &st->cap_zone, 4 * st->nrf)) != ANISTAR_OK) return s;
         const double *V = as_del3_point(d, st->vloc);
         double zr = 0;
         for (int32_t i = 0; i < st->nrf; i++) {
@@ -576,10 +597,17 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         }
         if (!near) return 0;
     }
-    for (int32_t i = 0; i < st->nitet; i++)
+    for (int32_t i = 0; i < st->nitet; i++) {
+        const double *S = st->isph + 4 * (size_t)i;
+        if (S[3] >= 0) {
+            double dd[3];
+            sub3(y, S, dd);
+            if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+        }
         if (as_del3_in_sphere(d, st->itet[i], y, gid)) {
             if (hint) *hint = st->itet[i];
             return 1;
         }
+    }
     return 0;
 }

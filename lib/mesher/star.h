@@ -67,6 +67,11 @@ typedef struct as_star {
     double *zone;
     int32_t cap_zone;
     double zr2;
+    /* per itet[i]: isph[4i..4i+2] its circumcenter (stretched frame), isph[4i+3] a bound
+     * on its squared circumradius (-1 for an infinite tet): a proven filter in front of
+     * the exact in-sphere test (see as_star_conflicts) */
+    double *isph;
+    int32_t cap_isph;
 } as_star;
 
 /* Scratch shared by every star of one owner (never per star). */

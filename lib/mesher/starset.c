@@ -541,7 +541,10 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
 }
 
 /* Build star st of p (id gid, frame mf) from the changed stars list[0..nl), the vertices
- * p shares a restricted facet with in those stars (when p is a site of them), and growth. */
+ * p shares a restricted facet with in those stars (when p is a site of them) or, for a
+ * simulation (p in no star), every vertex of their restricted stars, and growth.
+ * design: the seeds close the surface star at once, so growth starts from the small
+ * zone of a closed star and not from the whole Delaunay region of an open one. */
 static anistar_status build_star(as_starset *ss, as_star *st, const double p[3], int32_t gid,
                                  const as_metric_frame *mf, size_t nl, int with_neighbours) {
     anistar_status s;
@@ -556,11 +559,10 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
             ss->stamp[v] = ep;
             if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb++, v)) != ANISTAR_OK) return s;
         }
-        if (!with_neighbours) continue;
         const as_star *sv = ss->stars[v];
         for (int32_t i = 0; i < sv->nrf; i++) {
             const int32_t *g = sv->rf[i].g;
-            if (g[0] != gid && g[1] != gid && g[2] != gid) continue;
+            if (with_neighbours && g[0] != gid && g[1] != gid && g[2] != gid) continue;
             for (int j = 0; j < 3; j++) {
                 int32_t q = g[j];
                 if (q < 8 || ss->stamp[q] == ep) continue;

@@ -104,7 +104,7 @@ $(BUILD)/examples/%: $(BUILD)/obj/examples/%.o $(STATIC_LIB)
 	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(STATIC_LIB) $(LDLIBS_LIB)
 
 # Tests see the internal headers and link the static library (all symbols visible).
-$(BUILD)/test/%: $(BUILD)/obj/test/%.o $(TEST_COMMON_OBJ) $(STATIC_LIB) | $(SHARED_LIBS) $(TOOL)
+$(BUILD)/test/%: $(BUILD)/obj/test/%.o $(TEST_COMMON_OBJ) $(STATIC_LIB) | $(SHARED_LIBS) $(TOOL) $(EXAMPLES)
 	@mkdir -p $(dir $@)
 	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(TEST_COMMON_OBJ) \
 	    $(STATIC_LIB) $(TEST_LDLIBS)

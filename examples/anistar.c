@@ -547,7 +547,8 @@ static int mesh_progress(size_t vertices, size_t inconsistent, double seconds, v
 
 /* Write the --stats JSON. Returns 0, or -1 if the file cannot be written. */
 static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
-                            const double *values, const char *metric, int complete) {
+                            const double *values, const char *metric, int complete,
+                            int optimize) {
     FILE *f = fopen(path, "w");
     if (!f) return -1;
     fprintf(f, "{\n");
@@ -558,8 +559,9 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     fprintf(f, "  \"closed_manifold\": %s,\n  \"complete\": %s,\n",
             st->closed_manifold ? "true" : "false", complete ? "true" : "false");
     fprintf(f, "  \"seconds\": {\"total\": %.6g, \"init\": %.6g, \"refine\": %.6g, "
-               "\"output\": %.6g},\n",
-            st->seconds_total, st->seconds_init, st->seconds_refine, st->seconds_output);
+               "\"output\": %.6g, \"optimize\": %.6g},\n",
+            st->seconds_total, st->seconds_init, st->seconds_refine, st->seconds_output,
+            st->seconds_optimize);
     fprintf(f, "  \"insertions\": {\"initial\": %llu, \"rule1\": %llu, \"rule2\": %llu, "
                "\"rule3\": %llu},\n",
             (unsigned long long)st->insertions_initial,
@@ -574,10 +576,21 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     fprintf(f, "  \"histogram_width\": %.17g,\n  \"histogram\": [", st->histogram_width);
     for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++)
         fprintf(f, "%s%llu", i ? ", " : "", (unsigned long long)st->histogram[i]);
-    fprintf(f, "],\n  \"parameters\": {\"metric\": ");
+    fprintf(f, "],\n  \"rho2_mean\": %.17g,\n", st->rho2_mean);
+    /* vertex optimisation (paper 6.2): counters and the histogram before it */
+    fprintf(f, "  \"optimize\": {\"done\": %s, \"moved\": %llu, \"tries\": %llu, "
+               "\"passes\": %llu, \"seconds\": %.6g, \"rho2_mean_before\": %.17g,\n"
+               "    \"histogram_before\": [",
+            st->optimized ? "true" : "false", (unsigned long long)st->optimize_moved,
+            (unsigned long long)st->optimize_tries, (unsigned long long)st->optimize_passes,
+            st->seconds_optimize, st->rho2_mean_before);
+    for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++)
+        fprintf(f, "%s%llu", i ? ", " : "", (unsigned long long)st->histogram_before[i]);
+    fprintf(f, "]},\n  \"parameters\": {\"metric\": ");
     json_string_to(f, metric);
     for (size_t i = 0; i < NMESH_PARAMS; i++)
         fprintf(f, ", \"%s\": %.17g", mesh_params[i].json, values[i]);
+    fprintf(f, ", \"optimize\": %s", optimize ? "true" : "false");
     fprintf(f, "},\n  \"seed\": %.17g\n}\n", values[MESH_SEED]);
     int bad = ferror(f);
     if (fclose(f) != 0) bad = 1;
@@ -588,7 +601,7 @@ static int cmd_mesh(int argc, char **argv) {
     surface_opts so;
     memset(&so, 0, sizeof so);
     const char *metric = NULL, *sol = NULL, *stats = NULL, *outs[MAX_OUTPUTS];
-    int nouts = 0, quiet = 0, has_value[NMESH_PARAMS] = {0};
+    int nouts = 0, quiet = 0, optimize = 0, has_value[NMESH_PARAMS] = {0};
     double value[NMESH_PARAMS];
     for (int i = 0; i < argc;) {
         const char *a = argv[i];
@@ -597,9 +610,10 @@ static int cmd_mesh(int argc, char **argv) {
             i++;
             continue;
         }
-        if (!strcmp(a, "--optimize")) {
-            say("--optimize is not available yet");
-            return EXIT_USAGE;
+        if (!strcmp(a, "--optimize")) { /* vertex optimisation (paper 6.2) */
+            optimize = 1;
+            i++;
+            continue;
         }
         int k = -1;
         for (size_t j = 0; j < NMESH_PARAMS; j++)
@@ -698,6 +712,11 @@ static int cmd_mesh(int argc, char **argv) {
             goto done;
         }
     }
+    if (optimize && anistar_mesher_set(mr, ANISTAR_PARAM_OPTIMIZE, 1)) {
+        say("%s", anistar_last_error(ctx));
+        rc = EXIT_ERROR;
+        goto done;
+    }
     progress_state prog = {0};
     if (!quiet) anistar_mesher_set_progress(mr, mesh_progress, &prog);
     anistar_status st = anistar_mesher_run(mr, &mesh);
@@ -720,7 +739,7 @@ static int cmd_mesh(int argc, char **argv) {
     }
     anistar_mesh_stats ms;
     anistar_mesh_get_stats(mesh, &ms);
-    if (stats && mesh_stats_write(stats, &ms, value, metric, st == ANISTAR_OK)) {
+    if (stats && mesh_stats_write(stats, &ms, value, metric, st == ANISTAR_OK, optimize)) {
         say("cannot write '%s'", stats);
         rc = EXIT_ERROR;
         goto done;
@@ -753,8 +772,8 @@ static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
-             "                 [--seed N] [--pick-tries N] [--quiet] [--sol FILE.sol]\n"
-             "                 [--stats FILE.json] -o OUT [-o OUT2 ...]",
+             "                 [--seed N] [--pick-tries N] [--optimize] [--quiet]\n"
+             "                 [--sol FILE.sol] [--stats FILE.json] -o OUT [-o OUT2 ...]",
      cmd_mesh},
     {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]\n"
                "                 [--size WxH] [--edges on|off] [--up x|y|z] [--range MIN,MAX]\n"

@@ -201,8 +201,12 @@ typedef enum anistar_param {
                                    refinement; >= 0, 0 = no limit (default) */
     ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
                                    [0, 2^53] (default 0) */
-    ANISTAR_PARAM_PICK_TRIES    /* Pick_valid tries before the center is taken; integer
+    ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer
                                    in [1, 100000] (default 60) */
+    ANISTAR_PARAM_OPTIMIZE      /* 1: vertex optimisation after a complete run (paper
+                                   6.2; moves vertices toward the area-weighted mean of
+                                   their facets' surface centers while every guarantee
+                                   holds and quality improves); 0 or 1 (default 0) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */
@@ -266,6 +270,17 @@ typedef struct anistar_mesh_stats {
     uint64_t pick_valid_tries;    /* random candidates tested by Pick_valid */
     uint64_t pick_valid_failures; /* Pick_valid calls that fell back to the center */
     double seconds_total, seconds_init, seconds_refine, seconds_output;
+    double rho2_mean;             /* mean of the 3 F squared radius-edge ratios above */
+    /* vertex optimisation (paper 6.2; ANISTAR_PARAM_OPTIMIZE = 1 and a complete run,
+     * else all zero): optimized is 1 when it ran; histogram_before and rho2_mean_before
+     * describe the mesh before it (histogram, rho2_mean: after) */
+    int optimized;
+    uint64_t optimize_moved;      /* vertices moved (accepted moves) */
+    uint64_t optimize_tries;      /* candidate positions tested */
+    uint64_t optimize_passes;     /* passes over the vertices */
+    double seconds_optimize;      /* included in seconds_total and seconds_output */
+    double rho2_mean_before;
+    uint64_t histogram_before[ANISTAR_HISTOGRAM_BINS];
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);

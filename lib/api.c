@@ -272,6 +272,11 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
                            value);
         p->pick_tries = (int32_t)value;
         return ANISTAR_OK;
+    case ANISTAR_PARAM_OPTIMIZE: /* optimize (vertex optimisation, optimize.c) */
+        if (!(value == 0 || value == 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "optimize must be 0 or 1, got %g", value);
+        p->optimize = (int32_t)value;
+        return ANISTAR_OK;
     }
     return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_set: unknown parameter %d", (int)key);
 }
@@ -291,6 +296,7 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
     case ANISTAR_PARAM_MAX_SECONDS: *value = p->max_seconds; return ANISTAR_OK;
     case ANISTAR_PARAM_SEED: *value = (double)p->seed; return ANISTAR_OK;
     case ANISTAR_PARAM_PICK_TRIES: *value = p->pick_tries; return ANISTAR_OK;
+    case ANISTAR_PARAM_OPTIMIZE: *value = p->optimize; return ANISTAR_OK; /* optimize.c */
     }
     return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
 }

@@ -207,7 +207,6 @@ static void test_usage_errors(void **state) {
         {S, "--delta", "1", "-o", "/tmp/x.off", NULL},  /* delta outside (0, 1) */
         {S, "--delta", "0", "-o", "/tmp/x.off", NULL},
         {S, "--beta", "0.9", "-o", "/tmp/x.off", NULL}, /* beta < 1 */
-        {S, "--optimize", "-o", "/tmp/x.off", NULL},
         {S, "-o", "/tmp/x.xyz", NULL}, /* unknown output extension */
         {S, "--max-vertices", "1.5", "-o", "/tmp/x.off", NULL},
         {S, "--metric", "bogus", "-o", "/tmp/x.off", NULL},
@@ -215,7 +214,7 @@ static void test_usage_errors(void **state) {
     };
 #undef S
     const char *msgs[] = {"unknown option", "-o",       "--r0",     "--r0",     "--gamma0",
-                          "--rho0",         "--delta",  "--delta",  "--beta",   "--optimize",
+                          "--rho0",         "--delta",  "--delta",  "--beta",
                           "extension",      "--max-vertices",       "--metric", "needs a value"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {

@@ -216,32 +216,46 @@ static void build_check(fixture *f, as_del3 *d, const double *pts, int n,
 
 /* ---- Hilbert and BRIO ---------------------------------------------------------------- */
 
-static void test_hilbert(void **state) {
-    (void)state;
-    enum { B = 3, N = 1 << (3 * B) };
-    int seen[N];
-    int cell[N][3];
-    memset(seen, 0, sizeof seen);
+/* The curve on a 2^B grid: a bijection onto [0, 8^B) whose consecutive indices are
+ * face-adjacent cells. */
+static void check_curve(int B) {
+    size_t n = (size_t)1 << (3 * B);
+    int32_t *cell = malloc(3 * n * sizeof *cell);
+    unsigned char *seen = calloc(n, 1);
+    assert_true(cell && seen);
     for (uint32_t x = 0; x < (1u << B); x++)
         for (uint32_t y = 0; y < (1u << B); y++)
             for (uint32_t z = 0; z < (1u << B); z++) {
                 uint64_t h = as_hilbert3_index(x, y, z, B);
-                assert_true(h < N);
+                assert_true(h < n);
                 assert_int_equal(seen[h], 0);
                 seen[h] = 1;
-                cell[h][0] = (int)x;
-                cell[h][1] = (int)y;
-                cell[h][2] = (int)z;
+                cell[3 * h] = (int32_t)x;
+                cell[3 * h + 1] = (int32_t)y;
+                cell[3 * h + 2] = (int32_t)z;
             }
-    for (int h = 1; h < N; h++) {
-        int dist = abs(cell[h][0] - cell[h - 1][0]) + abs(cell[h][1] - cell[h - 1][1]) +
-                   abs(cell[h][2] - cell[h - 1][2]);
+    for (size_t h = 1; h < n; h++) {
+        int dist = abs(cell[3 * h] - cell[3 * h - 3]) + abs(cell[3 * h + 1] - cell[3 * h - 2]) +
+                   abs(cell[3 * h + 2] - cell[3 * h - 1]);
         assert_int_equal(dist, 1);
     }
-    /* The 16-bit curve used by the sort: consecutive cells adjacent on a sample. */
-    for (uint32_t x = 1000; x < 1004; x++) {
-        uint64_t h0 = as_hilbert3_index(x, 77, 31000, 16);
-        assert_true(h0 < ((uint64_t)1 << 48));
+    free(cell);
+    free(seen);
+}
+
+static void test_hilbert(void **state) {
+    (void)state;
+    for (int B = 1; B <= 6; B++) check_curve(B);
+    /* The 21-bit curve used by the sort: face-adjacent cells stay close along the curve on
+     * average (locality), and every index is in range. */
+    tu_rng r = {5};
+    for (int k = 0; k < 1000; k++) {
+        uint32_t c[3];
+        for (int i = 0; i < 3; i++) c[i] = (uint32_t)(tu_rng_u64(&r) % ((1u << 21) - 1));
+        uint64_t h0 = as_hilbert3_index(c[0], c[1], c[2], 21);
+        assert_true(h0 < ((uint64_t)1 << 63));
+        c[0] ^= 1u << 20; /* the other half along x: a different top-level octant */
+        assert_true(as_hilbert3_index(c[0], c[1], c[2], 21) != h0);
     }
 }
 
@@ -429,6 +443,118 @@ static void test_cospherical(void **state) {
     assert_same_triangulation(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
+    free(p);
+    fx_close(&f);
+}
+
+/* ---- the cached-sphere filter versus the exact predicate ------------------------------ */
+
+static int sgn(double x) { return (x > 0) - (x < 0); }
+
+/* For every live finite tet of d: the filter on nq query points (its vertices' neighbours,
+ * points rounded onto its circumsphere, random points around it) must agree with the sign
+ * of the exact insphere whenever it decides. Counts decided / undecided / exact zeros. */
+static void filter_vs_exact(as_del3 *d, tu_rng *r, long cnt[3]) {
+    for (int32_t t = 0; t < d->nt; t++) {
+        if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
+        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        const double *a = as_del3_point(d, tv[0]), *b = as_del3_point(d, tv[1]);
+        const double *c = as_del3_point(d, tv[2]), *e = as_del3_point(d, tv[3]);
+        double ctr[3];
+        assert_int_equal(as_del3_circumcenter(d, t, ctr), 0);
+        double rad = sqrt((a[0] - ctr[0]) * (a[0] - ctr[0]) + (a[1] - ctr[1]) * (a[1] - ctr[1]) +
+                          (a[2] - ctr[2]) * (a[2] - ctr[2]));
+        for (int k = 0; k < 24; k++) {
+            double q[3];
+            if (k < 8) { /* a vertex of the triangulation (often one of t: exact zero) */
+                const double *w = as_del3_point(d, (int32_t)(tu_rng_u64(r) % (uint64_t)d->nv));
+                memcpy(q, w, sizeof q);
+                if (k < 4) memcpy(q, as_del3_point(d, tv[k]), sizeof q);
+            } else { /* on the circumsphere up to rounding, or a little off it */
+                double g[3] = {gauss(r), gauss(r), gauss(r)};
+                double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+                double f = k < 16 ? 1.0 : 1.0 + tu_rng_range(r, -1e-9, 1e-9);
+                for (int i = 0; i < 3; i++) q[i] = ctr[i] + rad * f * g[i] / gn;
+            }
+            int fl = as_del3_sphere_filter(d, t, q);
+            int ex = sgn(as_insphere_exact(a, b, c, e, q));
+            if (fl != 0 && fl != ex)
+                fail_msg("sphere filter %d, exact %d (tet %d)", fl, ex, (int)t);
+            cnt[fl == 0]++;
+            cnt[2] += ex == 0;
+        }
+    }
+}
+
+static void test_sphere_filter(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {77};
+    long cnt[3] = {0, 0, 0};
+    double *p = alloc_pts(2000);
+    for (int fam = 0; fam < 5; fam++) {
+        int n = 0;
+        if (fam == 0) { /* uniform */
+            for (n = 0; n < 300; n++)
+                for (int k = 0; k < 3; k++) p[3 * n + k] = tu_rng_range(&r, -1, 1);
+        } else if (fam == 1) { /* a grid: cospherical quadruples everywhere */
+            for (int x = 0; x < 6; x++)
+                for (int y = 0; y < 6; y++)
+                    for (int z = 0; z < 6; z++, n++) {
+                        p[3 * n] = x;
+                        p[3 * n + 1] = y;
+                        p[3 * n + 2] = z;
+                    }
+        } else if (fam == 2) { /* exactly cospherical points plus the center */
+            n = sphere_lattice(13, 1.0 / 16, p, 1999);
+            p[3 * n] = p[3 * n + 1] = p[3 * n + 2] = 0;
+            n++;
+        } else { /* tiny / huge scales, flattened (slivers): anisotropy 1e6 */
+            double sc = fam == 3 ? 1e-30 : 1e30;
+            for (n = 0; n < 300; n++) {
+                p[3 * n] = sc * tu_rng_range(&r, -1, 1);
+                p[3 * n + 1] = sc * tu_rng_range(&r, -1, 1);
+                p[3 * n + 2] = sc * 1e-6 * tu_rng_range(&r, -1, 1);
+            }
+        }
+        as_del3 d;
+        build_check(&f, &d, p, n, NULL);
+        filter_vs_exact(&d, &r, cnt);
+        /* the insertions' own statistics: the cache served them, with exact fallbacks */
+        assert_true(d.stats.sphere_tests > 0);
+        assert_true(d.stats.sphere_exact <= d.stats.sphere_tests);
+        if (fam == 1 || fam == 2) assert_true(d.stats.sphere_exact > 0);
+        /* a corrupted cache is caught by the validator */
+        for (int32_t t = 0; t < d.nt; t++) {
+            double *cs = d.sph + AS_DEL3_SPH * (size_t)t;
+            if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t) || cs[4] < 0) continue;
+            double keep = cs[0];
+            cs[0] = keep * 2 + 1;
+            assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
+            cs[0] = keep;
+            break;
+        }
+        check_all(&d);
+        /* a cached sphere equals a fresh one: drop the caches, same answers */
+        as_del3_forget_spheres(&d);
+        long cnt2[3] = {0, 0, 0};
+        filter_vs_exact(&d, &r, cnt2);
+        as_del3_destroy(&d);
+    }
+    /* both outcomes occur, and exact ties are never decided */
+    assert_true(cnt[0] > 1000 && cnt[1] > 100 && cnt[2] > 100);
+    /* a big triangulation drops the cache (and stays valid through the plain filter) */
+    {
+        double *q = pts_cube(&r, 4000);
+        as_del3 d;
+        build_check(&f, &d, q, 4000, NULL);
+        assert_true(d.cap_t > ((size_t)1 << 14));
+        assert_null(d.sph);
+        assert_int_equal(d.stats.sphere_tests, 0);
+        as_del3_destroy(&d);
+        free(q);
+    }
     free(p);
     fx_close(&f);
 }
@@ -1108,6 +1234,7 @@ static void test_validators(void **state) {
         int32_t v = (int32_t)(tu_rng_u64(&r) % 50);
         double *x = d.xyz + 3 * v, save[3] = {x[0], x[1], x[2]};
         for (int k = 0; k < 3; k++) x[k] += tu_rng_range(&r, -0.08, 0.08);
+        as_del3_forget_spheres(&d); /* the cached spheres of v's tets are stale */
         if (as_del3_check_combinatorics(&d) == ANISTAR_OK) {
             int local = as_del3_check_delaunay(&d) == ANISTAR_OK;
             assert_int_equal(local, globally_delaunay(&d));
@@ -1115,6 +1242,7 @@ static void test_validators(void **state) {
             invalid += !local;
         }
         memcpy(x, save, sizeof save);
+        as_del3_forget_spheres(&d);
     }
     assert_true(valid > 0 && invalid > 0);
     check_all(&d);
@@ -1262,6 +1390,7 @@ int main(void) {
         cmocka_unit_test(test_vertex_queries),
         cmocka_unit_test(test_circumcenter),
         cmocka_unit_test(test_validators),
+        cmocka_unit_test(test_sphere_filter),
         cmocka_unit_test(test_reset_determinism),
         cmocka_unit_test(test_alloc_failures),
     };

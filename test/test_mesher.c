@@ -2,15 +2,10 @@
  * test_mesher.c — end-to-end tests of the anisotropic surface mesher (lib/mesher, public
  * API): guarantees of the output checked independently of the mesher's state.
  *
- * The independent star check rebuilds, for each checked output vertex v, the Delaunay
- * triangulation of F_v applied to {the 8 box corners, the poles, every output vertex}
- * from scratch (bulk insertion) and applies the dual-edge test with the surface oracle;
- * the facets it finds incident to v must be exactly the output triangles incident to v.
- * It uses the corners and poles because they are sites of every star T'_v (paper 5.3:
- * the stars are Delaunay for V u poles u corners; corners and poles are far from S, so
- * they change dual edges only far from S). Global ids: corners 0-7, poles next, output
- * vertices in output order (the mesher numbers output vertices by increasing global id,
- * so the symbolic perturbation orders ties the same way).
+ * The output checks (topology, shape in every vertex metric, vertices on S, and the
+ * independent star check that rebuilds each output vertex's stretched Delaunay
+ * triangulation from the output vertices, the poles and the 8 box corners) live in
+ * test/common/mesh_check.c, shared with test_e2e.
  */
 #include <math.h>
 #include <pthread.h>
@@ -18,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mesh_check.h"
 #include "test_util.h"
 
 #include "geom/del3.h"
@@ -34,12 +30,6 @@ typedef struct mcase {
     long long chi;
 } mcase;
 
-static int cmp_tri(const void *a, const void *b) {
-    const int32_t *x = a, *y = b;
-    for (int k = 0; k < 3; k++)
-        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
-    return 0;
-}
 static void sort3(int32_t g[3]) {
     for (int a = 0; a < 3; a++)
         for (int b = a + 1; b < 3; b++)
@@ -48,80 +38,6 @@ static void sort3(int32_t g[3]) {
                 g[a] = g[b];
                 g[b] = t;
             }
-}
-
-/* The independent check of the stars of (a subset of) the output vertices. */
-static void check_stars(anistar_context *ctx, const as_surface *s, const as_starset *ss,
-                        const anistar_mesh *mesh) {
-    size_t nv = mesh->tm.nv, nt = mesh->tm.nt;
-    int32_t npoles = ss->first_site - 8;
-    int32_t n = 8 + npoles + (int32_t)nv;
-    double *pts = malloc(3 * (size_t)n * sizeof *pts);
-    memcpy(pts, ss->xyz, 3 * (size_t)(8 + npoles) * sizeof *pts);
-    memcpy(pts + 3 * (size_t)(8 + npoles), mesh->tm.xyz, 3 * nv * sizeof *pts);
-    /* output triangles as sorted triples of ids, sorted */
-    int32_t *tris = malloc(3 * nt * sizeof *tris);
-    for (size_t t = 0; t < nt; t++) {
-        for (int k = 0; k < 3; k++) tris[3 * t + k] = mesh->tm.tri[3 * t + k] + 8 + npoles;
-        sort3(tris + 3 * t);
-    }
-    qsort(tris, nt, 3 * sizeof *tris, cmp_tri);
-    int32_t *vx = malloc((size_t)n * sizeof *vx);
-    int32_t *found = malloc(3 * 256 * sizeof *found);
-    size_t stride = nv > 100 ? nv / 100 : 1;
-    size_t checked = 0;
-    for (size_t i = 0; i < nv; i += stride) {
-        as_metric_frame mf;
-        assert_int_equal(as_metric_frame_init(&mf, mesh->tm.tensor + 6 * i), 0);
-        as_del3 d;
-        as_del3_init(&d, ctx);
-        assert_int_equal(as_del3_insert_points(&d, pts, NULL, n, &mf, vx, NULL), ANISTAR_OK);
-        as_del3_buf faces = {0};
-        int32_t v = vx[8 + npoles + (int32_t)i];
-        assert_int_equal(as_del3_vertex_facets(&d, v, &faces), ANISTAR_OK);
-        size_t m = 0;
-        for (size_t k = 0; k < faces.n; k++) {
-            int32_t f = faces.a[k], t1 = f >> 2, t2 = as_del3_mirror(&d, f) >> 2;
-            double c[2][3];
-            int in[2];
-            int32_t tt[2] = {t1, t2};
-            for (int q = 0; q < 2; q++) {
-                double cc[3];
-                assert_int_equal(as_del3_circumcenter(&d, tt[q], cc), 0);
-                as_metric_unapply(&mf, cc, c[q]);
-                int side;
-                assert_int_equal(as_surface_side(ctx, s, c[q], &side), ANISTAR_OK);
-                in[q] = side < 0;
-            }
-            if (in[0] == in[1]) continue;
-            assert_true(m < 256);
-            int32_t *g = found + 3 * m++;
-            int q = 0;
-            for (int j = 0; j < 4; j++)
-                if (j != (f & 3)) g[q++] = (int32_t)d.gid[d.tet_v[4 * t1 + j]];
-            sort3(g);
-        }
-        qsort(found, m, 3 * sizeof *found, cmp_tri);
-        /* the output triangles incident to i */
-        int32_t id = 8 + npoles + (int32_t)i;
-        size_t mo = 0;
-        for (size_t t = 0; t < nt; t++) {
-            const int32_t *g = tris + 3 * t;
-            if (g[0] != id && g[1] != id && g[2] != id) continue;
-            assert_true(mo < m);
-            assert_memory_equal(g, found + 3 * mo, 3 * sizeof *g);
-            mo++;
-        }
-        assert_int_equal(mo, m);
-        as_del3_buf_free(ctx, &faces);
-        as_del3_destroy(&d);
-        checked++;
-    }
-    assert_true(checked > 0);
-    free(found);
-    free(vx);
-    free(tris);
-    free(pts);
 }
 
 /* Run one case and check every guarantee. */
@@ -145,56 +61,22 @@ static void run_case(const mcase *c) {
     assert_true(nv > 20);
     assert_int_equal(S->inconsistent_facets, 0);
     assert_int_equal(S->complete, 1);
-    /* topology, independently of the stats */
-    as_topology top;
-    assert_int_equal(as_topology_check(ctx, nv, mesh->tm.xyz, nt, mesh->tm.tri, &top), ANISTAR_OK);
-    assert_true(top.closed_manifold);
-    assert_true(top.oriented);
-    assert_int_equal(top.euler, c->chi);
-    assert_int_equal((long long)nt, 2 * (long long)nv - 2 * c->chi);
     assert_int_equal(S->euler_characteristic, c->chi);
     assert_true(S->closed_manifold);
-    /* shape and size in each vertex metric */
-    double rho_max = 0;
-    for (size_t t = 0; t < nt; t++) {
-        const int32_t *tri = mesh->tm.tri + 3 * t;
-        for (int k = 0; k < 3; k++) {
-            as_metric_frame mf;
-            assert_int_equal(as_metric_frame_init(&mf, mesh->tm.tensor + 6 * (size_t)tri[k]), 0);
-            double R;
-            double rho = as_radius_edge(&mf, mesh->tm.xyz + 3 * (size_t)tri[0],
-                                        mesh->tm.xyz + 3 * (size_t)tri[1],
-                                        mesh->tm.xyz + 3 * (size_t)tri[2], &R);
-            /* rule 2: rho_v <= rho0 in every vertex metric (consistency makes each
-             * vertex's rule apply); rule 1: r_v(tau) < r0, and the smallest
-             * M_v-circumball is no larger than the surface one */
-            assert_true(rho <= p.rho0 * (1 + 1e-12));
-            assert_true(R < p.r0);
-            if (rho > rho_max) rho_max = rho;
-        }
-        /* rule 1: distortion between the vertices below gamma0 */
-        for (int a = 0; a < 3; a++)
-            for (int b = a + 1; b < 3; b++) {
-                as_metric_frame ma, mb;
-                assert_int_equal(as_metric_frame_init(&ma, mesh->tm.tensor + 6 * (size_t)tri[a]), 0);
-                assert_int_equal(as_metric_frame_init(&mb, mesh->tm.tensor + 6 * (size_t)tri[b]), 0);
-                assert_true(as_metric_distortion(&ma, &mb) < p.gamma0);
-            }
-    }
-    assert_true(fabs(rho_max - S->rho_max) <= 1e-12 * rho_max);
+    /* topology, shape and size in every vertex metric, vertices on S (implicit:
+     * |f|/|grad f| <= 1e-9 R), stars: independently of the mesher's state */
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+    mc_report rep;
+    mc_report_init(&rep);
+    mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);
+    mc_assert_ok(&rep, c->surface);
+    assert_true(rep.stars_checked == nv);
+    assert_true(fabs(rep.rho_max - S->rho_max) <= 1e-12 * rep.rho_max);
     assert_true(S->r_max < p.r0);
-    /* every vertex on S */
-    for (size_t i = 0; i < nv; i++) {
-        double fv, g[3];
-        assert_int_equal(as_surface_eval(ctx, s, mesh->tm.xyz + 3 * i, 1, &fv, g, NULL), ANISTAR_OK);
-        double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-        assert_true(fabs(fv) / gn <= 1e-9 * s->radius);
-    }
     /* histogram counts 3 values per facet */
     uint64_t h = 0;
     for (int b = 0; b < ANISTAR_HISTOGRAM_BINS; b++) h += S->histogram[b];
     assert_int_equal(h, 3 * (uint64_t)nt);
-    check_stars(ctx, s, ss, mesh);
     as_starset_destroy(ss);
     free(ss); /* allocated with the default (malloc) allocator of ctx */
     as_mesh_free(mesh);

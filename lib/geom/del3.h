@@ -35,7 +35,9 @@
  * Lifetime: as_del3_init / as_del3_destroy; as_del3_reset empties it and keeps capacity
  * (a reset structure rebuilt with the same calls gives identical arrays). Memory comes
  * from the context allocator; no allocation per tet (amortised array growth): 36 bytes
- * per tet slot, 44 per vertex (about 280 bytes per point for uniform random points).
+ * per tet slot (plus 48 of cached sphere while the capacity is at most 2^14 slots: star-
+ * sized triangulations), 44 per vertex (about 280 bytes per point for uniform random
+ * points).
  * All functions are reentrant (no globals); one structure is used by one thread at a time.
  *
  * Debug: build with -DAS_DEL3_DEBUG to run both validators after every insertion (an
@@ -78,6 +80,9 @@ typedef struct as_del3_bface {
  * glued through a direct table of AS_DEL3_LMAX^2 entries; bigger ones through a hash. */
 #define AS_DEL3_LMAX 64
 
+/* Doubles per tet slot in the sphere cache (del3.c: N[3], D, e1, e2). */
+#define AS_DEL3_SPH 6
+
 /* An entry of the cavity edge table (internal). */
 typedef struct as_del3_edge {
     int32_t a, b, link;
@@ -91,6 +96,9 @@ typedef struct as_del3_stats {
     uint64_t created_tets;        /* tets created by insertions */
     uint64_t big_cavities;        /* cavities glued through the hash (> AS_DEL3_LMAX
                                      boundary vertices) */
+    uint64_t sphere_tests;        /* insphere tests of finite tets by the insertions */
+    uint64_t sphere_exact;        /* ... that the cached-sphere filter left to the exact
+                                     predicate */
 } as_del3_stats;
 
 typedef struct as_del3 {
@@ -110,6 +118,11 @@ typedef struct as_del3 {
     int32_t nlive; /* live tets (finite + infinite) */
     size_t cap_t;
     int32_t *tet_v, *tet_adj, *next;
+    double *sph; /* cap_t * AS_DEL3_SPH: the cached lifted plane of each finite tet (its
+                    circumsphere as a linear test relative to tet_v[4t], with an error
+                    bound; see del3.c), computed at the tet's first insphere test;
+                    sph[AS_DEL3_SPH t + 4] < 0 until then. NULL (no cache) once cap_t
+                    exceeded 2^14 (until destroyed): big triangulations test directly */
     int32_t free_head; /* first free slot or -1 */
 
     int dim3;        /* 1 once the points span 3D (tets exist) */
@@ -131,7 +144,7 @@ typedef struct as_del3 {
     int32_t *etouch;
     size_t cap_etouch;
     int32_t *ltab; /* AS_DEL3_LMAX^2 entries, 0 between insertions */
-    int32_t lverts[AS_DEL3_LMAX];
+    int32_t lverts[AS_DEL3_LMAX + 1]; /* one spare entry: written branch-free */
     int32_t conflict_head; /* the conflict list (through next) of the last search */
     int32_t nconflict;
 
@@ -188,7 +201,8 @@ int as_del3_insert_frame(as_del3 *d, const as_metric_frame *mf, const double q[3
  * Bulk insertion of n points pts[3i..3i+2] (in the frame mf, NULL: identity) with global
  * ids gids[i] (gids == NULL: gid i). More than 64 points are inserted in BRIO order
  * (random rounds growing by 8, deterministic: as_sort_brio with d's seed) with a Hilbert
- * order inside each round; fewer are inserted in the given order. vertex (optional, n entries) receives the
+ * order inside each round; fewer are inserted in the given order (the next points of the
+ * sorted order are prefetched). vertex (optional, n entries) receives the
  * vertex of each point (the existing vertex for a duplicate); *ndup (optional) the number
  * of duplicates. Returns ANISTAR_OK, ANISTAR_EINVAL (non-finite coordinates: nothing
  * inserted) or ANISTAR_ENOMEM (the triangulation holds a subset of the points, valid;
@@ -200,6 +214,12 @@ anistar_status as_del3_insert_points(as_del3 *d, const double *pts, const int64_
                                      int32_t *ndup);
 
 /* ---- queries that do not modify -------------------------------------------------------- */
+
+/* The cached-sphere filter alone (tests): +1 / -1 when it certifies the sign of
+ * insphere(tet t, p) (the unperturbed predicate, +1 inside), 0 when it leaves the decision
+ * to the exact predicate. t must be a live finite tet. Uses t's cached sphere, or computes
+ * one without storing it. */
+int as_del3_sphere_filter(const as_del3 *d, int32_t t, const double p[3]);
 
 /*
  * The conflict zone of a point p not (yet) inserted, with provisional global id gid:
@@ -262,14 +282,18 @@ static inline const double *as_del3_point(const as_del3 *d, int32_t v) {
  * as_del3_count. */
 void as_del3_count(const as_del3 *d, int32_t *finite_tets, int32_t *infinite_tets);
 
+/* Drop every cached sphere (they are recomputed at the next test). Needed only after
+ * changing stored coordinates d->xyz in place (tests do; the library never does). */
+void as_del3_forget_spheres(as_del3 *d);
+
 /* ---- validators (tests; debug builds after every insertion) --------------------------- */
 
 /*
  * Combinatorial and orientation validity: live slots and free list consistent; every
  * adjacency symmetric with equal vertex sets on both sides and opposite orientations;
  * at most one infinite vertex per tet; every finite tet positively oriented (exact
- * orient3d); every infinite tet's neighbour across its finite face strictly inside; the
- * link of every vertex (the infinite one too) a triangulated 2-sphere reached from vtet
+ * orient3d) and its cached sphere, if any, equal to a fresh one; every infinite tet's
+ * neighbour across its finite face strictly inside; the link of every vertex (the infinite one too) a triangulated 2-sphere reached from vtet
  * (neighbours = 2 + tets/2), every vertex reachable; V - E + F - T = 0 (with infinite
  * vertex). Returns ANISTAR_OK or ANISTAR_EINTERNAL with a message in the context;
  * ANISTAR_ENOMEM if scratch memory runs out.

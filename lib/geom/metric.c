@@ -110,13 +110,9 @@ int as_metric_frame_from_eigen(as_metric_frame *mf, const double u[9], const dou
     return 0;
 }
 
-/* y = A x for a row-major 3x3 A, each row summed left to right: ((a0 x0 + a1 x1) + a2 x2).
- * With -ffp-contract=off this is one fixed sequence of roundings. */
-
-
-/* |v| for a 3-vector, without spurious overflow or underflow. */
-static double as_norm3(const double v[3]) {
-    double s = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+/* |v| for a 3-vector whose squared norm s under- or overflowed (as_metric_dist's slow
+ * path): scaled by a power of two. */
+double as_norm3_scaled(const double v[3], double s) {
     if (s >= DBL_MIN && s <= DBL_MAX) return sqrt(s);
     double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
     if (mx == 0 || !isfinite(mx)) return mx;
@@ -126,11 +122,6 @@ static double as_norm3(const double v[3]) {
     return ldexp(sqrt(a * a + b * b + c * c), ex);
 }
 
-double as_metric_dist(const as_metric_frame *mf, const double a[3], const double b[3]) {
-    double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]}, y[3];
-    as_metric_mul3(mf->f, d, y);
-    return as_norm3(y);
-}
 
 /* ---- distortion --------------------------------------------------------------------- */
 
@@ -379,5 +370,8 @@ int as_metric_distortion_filter(const as_metric_frame *a, const as_metric_frame 
  * row_i(F^-1) . y = r |row_i(F^-1)| (DESIGN.md 4.4).
  */
 void as_metric_ellipsoid_box(const as_metric_frame *mf, double r, double h[3]) {
-    for (int i = 0; i < 3; i++) h[i] = r * as_norm3(mf->finv + 3 * i);
+    for (int i = 0; i < 3; i++) {
+        const double *w = mf->finv + 3 * i;
+        h[i] = r * as_norm3_scaled(w, w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    }
 }

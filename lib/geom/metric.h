@@ -7,6 +7,8 @@
 #ifndef ANISTAR_METRIC_H
 #define ANISTAR_METRIC_H
 
+#include <math.h>
+
 typedef struct as_metric_frame {
     double m[6];    /* M, symmetric (m11 m12 m13 m22 m23 m33) */
     double f[9];    /* F = M^(1/2), row-major, exactly symmetric (f[3i+j] == f[3j+i]) */
@@ -45,8 +47,17 @@ static inline void as_metric_apply(const as_metric_frame *mf, const double x[3],
 static inline void as_metric_unapply(const as_metric_frame *mf, const double x[3], double y[3]) {
     as_metric_mul3(mf->finv, x, y);
 }
-/* d_M(a, b) = |F (a - b)|, without spurious overflow or underflow; d(a, b) == d(b, a). */
-double as_metric_dist(const as_metric_frame *mf, const double a[3], const double b[3]);
+double as_norm3_scaled(const double v[3], double s);
+/* d_M(a, b) = |F (a - b)|, without spurious overflow or underflow; d(a, b) == d(b, a).
+ * Inline: the mesher calls it in its innermost loops. */
+static inline double as_metric_dist(const as_metric_frame *mf, const double a[3],
+                                    const double b[3]) {
+    double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]}, y[3];
+    as_metric_mul3(mf->f, d, y);
+    double s = y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+    if (s >= 0x1p-1022 && s <= 0x1.fffffffffffffp+1023) return sqrt(s);
+    return as_norm3_scaled(y, s);
+}
 
 /* Distortion gamma(M, N) = max(|F_M F_N^-1|, |F_N F_M^-1|) >= 1 (paper 2.2), computed as
  * sqrt(max(lambda_max(G^T G), lambda_max(H^T H))), G = F_M F_N^-1, H = F_N F_M^-1 (equal to

@@ -99,11 +99,11 @@
 #define AS_O3D_ERRA ((7.0 + 56.0 * AS_EPS) * AS_EPS)
 #define AS_O3D_ERRB ((3.0 + 28.0 * AS_EPS) * AS_EPS)
 #define AS_O3D_ERRC ((26.0 + 288.0 * AS_EPS) * AS_EPS * AS_EPS)
-#define AS_O3D_STATIC ((7.0 + 256.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRA ((16.0 + 224.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRB ((5.0 + 72.0 * AS_EPS) * AS_EPS)
 #define AS_ISP_ERRC ((71.0 + 1408.0 * AS_EPS) * AS_EPS * AS_EPS)
-#define AS_ISP_STATIC ((16.0 + 1024.0 * AS_EPS) * AS_EPS)
+/* AS_O3D_STATIC = (7 + 256u)u and AS_ISP_STATIC = (16 + 1024u)u: predicates.h (stage 0,
+ * exported inline as as_orient3d_filter / as_insphere_filter). */
 
 /* ---- bench-only counters ------------------------------------------------------------- */
 
@@ -304,16 +304,9 @@ static AS_NOINLINE double as_o3d_adapt(const double *a, const double *b, const d
  *  - |det| > c_o3d sx sy sz: return det (the common case);
  *  - else as_o3d_adapt: stage A, B, C, D (file header). */
 double as_orient3d(const double *a, const double *b, const double *c, const double *d) {
-    double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
-    double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
-    double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
-    double det = as_o3d_det(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz);
-    double sx = fabs(adx) + fabs(bdx) + fabs(cdx);
-    double sy = fabs(ady) + fabs(bdy) + fabs(cdy);
-    double sz = fabs(adz) + fabs(bdz) + fabs(cdz);
-    double bound = AS_O3D_STATIC * (sx * sy * sz);
     AS_COUNT(orient3d_calls);
-    if (fabs(det) > bound) return det; /* false for NaN: non-finite input goes on */
+    double det = as_orient3d_filter(a, b, c, d);
+    if (det != 0.0) return det; /* 0 for NaN: non-finite input goes on */
     return as_o3d_adapt(a, b, c, d);
 }
 
@@ -603,18 +596,9 @@ static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const d
  *  - else as_isp_adapt: stage A, B, C, D (file header). */
 double as_insphere(const double *a, const double *b, const double *c, const double *d,
                    const double *e) {
-    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
-    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
-    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
-    double lmax;
-    double det =
-        as_isp_det(aex, aey, aez, bex, bey, bez, cex, cey, cez, dex, dey, dez, &lmax);
-    double sx = (fabs(aex) + fabs(bex)) + (fabs(cex) + fabs(dex));
-    double sy = (fabs(aey) + fabs(bey)) + (fabs(cey) + fabs(dey));
-    double sz = (fabs(aez) + fabs(bez)) + (fabs(cez) + fabs(dez));
-    double bound = AS_ISP_STATIC * ((sx * sy * sz) * lmax);
     AS_COUNT(insphere_calls);
-    if (fabs(det) > bound) return det; /* false for NaN: non-finite input goes on */
+    double det = as_insphere_filter(a, b, c, d, e);
+    if (det != 0.0) return det; /* 0 for NaN: non-finite input goes on */
     return as_isp_adapt(a, b, c, d, e);
 }
 

@@ -21,7 +21,68 @@
 #ifndef ANISTAR_PREDICATES_H
 #define ANISTAR_PREDICATES_H
 
+#include <float.h>
+#include <math.h>
 #include <stdint.h>
+
+/* ---- stage 0 (the semi-static filters), inline for the hot loops of callers ------------
+ * as_orient3d_filter / as_insphere_filter return the plain floating-point determinant when
+ * its sign is certified (|det| > c * sx * sy * sz [* lmax]: the bound and its derivation
+ * are in predicates.c, "Stage-0 constants"), else 0 (also for non-finite input): the
+ * caller then calls as_orient3d / as_insphere, which are always exact. The adaptive
+ * predicates start with exactly these filters. */
+#if defined(__GNUC__) || defined(__clang__)
+#define AS_PRED_INLINE static inline __attribute__((always_inline))
+#else
+#define AS_PRED_INLINE static inline
+#endif
+#define AS_O3D_STATIC ((7.0 + 256.0 * (DBL_EPSILON * 0.5)) * (DBL_EPSILON * 0.5))
+#define AS_ISP_STATIC ((16.0 + 1024.0 * (DBL_EPSILON * 0.5)) * (DBL_EPSILON * 0.5))
+
+AS_PRED_INLINE double as_orient3d_filter(const double *a, const double *b, const double *c,
+                                        const double *d) {
+    double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
+    double ady = a[1] - d[1], bdy = b[1] - d[1], cdy = c[1] - d[1];
+    double adz = a[2] - d[2], bdz = b[2] - d[2], cdz = c[2] - d[2];
+    double bc = bdx * cdy - cdx * bdy;
+    double ca = cdx * ady - adx * cdy;
+    double ab = adx * bdy - bdx * ady;
+    double det = adz * bc + bdz * ca + cdz * ab;
+    double sx = fabs(adx) + fabs(bdx) + fabs(cdx);
+    double sy = fabs(ady) + fabs(bdy) + fabs(cdy);
+    double sz = fabs(adz) + fabs(bdz) + fabs(cdz);
+    double bound = AS_O3D_STATIC * (sx * sy * sz);
+    return fabs(det) > bound ? det : 0.0; /* false for NaN */
+}
+
+AS_PRED_INLINE double as_insphere_filter(const double *a, const double *b, const double *c,
+                                        const double *d, const double *e) {
+    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
+    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
+    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
+    double ab = aex * bey - bex * aey;
+    double bc = bex * cey - cex * bey;
+    double cd = cex * dey - dex * cey;
+    double da = dex * aey - aex * dey;
+    double ac = aex * cey - cex * aey;
+    double bd = bex * dey - dex * bey;
+    double abc = aez * bc - bez * ac + cez * ab;
+    double bcd = bez * cd - cez * bd + dez * bc;
+    double cda = cez * da + dez * ac + aez * cd;
+    double dab = dez * ab + aez * bd + bez * da;
+    double alift = aex * aex + aey * aey + aez * aez;
+    double blift = bex * bex + bey * bey + bez * bez;
+    double clift = cex * cex + cey * cey + cez * cez;
+    double dlift = dex * dex + dey * dey + dez * dez;
+    double det = (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
+    double m1 = alift > blift ? alift : blift, m2 = clift > dlift ? clift : dlift;
+    double lmax = m1 > m2 ? m1 : m2;
+    double sx = (fabs(aex) + fabs(bex)) + (fabs(cex) + fabs(dex));
+    double sy = (fabs(aey) + fabs(bey)) + (fabs(cey) + fabs(dey));
+    double sz = (fabs(aez) + fabs(bez)) + (fabs(cez) + fabs(dez));
+    double bound = AS_ISP_STATIC * ((sx * sy * sz) * lmax);
+    return fabs(det) > bound ? det : 0.0; /* false for NaN */
+}
 
 double as_orient3d(const double *a, const double *b, const double *c, const double *d);
 double as_orient3d_fast(const double *a, const double *b, const double *c, const double *d);

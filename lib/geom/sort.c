@@ -6,38 +6,50 @@
 #include <math.h>
 #include <string.h>
 
+/* The 21 low bits of x spread to every third bit (bit k -> bit 3k). */
+static inline uint64_t spread3(uint32_t x) {
+    uint64_t v = x & 0x1fffffu;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+}
+
+/* design: no data-dependent branch (the bit tests of the level loop are coin flips for the
+ * branch predictor: they cost more than the arithmetic), masks instead; the interleave by
+ * bit spreading. Same result as the textbook loops. */
 uint64_t as_hilbert3_index(uint32_t x, uint32_t y, uint32_t z, int bits) {
-    uint32_t c[3] = {x, y, z};
+    uint32_t c0 = x, c1 = y, c2 = z;
     uint32_t top = (uint32_t)1 << (bits - 1);
     /* From the coarsest level down: where the bit of axis i is set, flip the lower bits of
      * axis 0; otherwise swap the lower bits of axes 0 and i. This undoes the reflections
      * and rotations the curve applies in the sub-cubes. */
     for (uint32_t q = top; q > 1; q >>= 1) {
-        uint32_t low = q - 1;
-        for (int i = 0; i < 3; i++) {
-            if (c[i] & q) {
-                c[0] ^= low;
-            } else {
-                uint32_t sw = (c[0] ^ c[i]) & low;
-                c[0] ^= sw;
-                c[i] ^= sw;
-            }
-        }
+        uint32_t low = q - 1, m, t;
+        m = 0u - ((c0 & q) != 0); /* axis 0: flip if set (a swap with itself is nothing) */
+        c0 ^= low & m;
+        m = 0u - ((c1 & q) != 0);
+        t = (c0 ^ c1) & low & ~m;
+        c0 ^= (low & m) | t;
+        c1 ^= t;
+        m = 0u - ((c2 & q) != 0);
+        t = (c0 ^ c2) & low & ~m;
+        c0 ^= (low & m) | t;
+        c2 ^= t;
     }
     /* Gray code across the axes. */
-    c[1] ^= c[0];
-    c[2] ^= c[1];
+    c1 ^= c0;
+    c2 ^= c1;
     uint32_t g = 0;
-    for (uint32_t q = top; q > 1; q >>= 1)
-        if (c[2] & q) g ^= q - 1;
-    c[0] ^= g;
-    c[1] ^= g;
-    c[2] ^= g;
-    /* Interleave: level by level, axis 0 first. */
-    uint64_t h = 0;
-    for (int l = bits - 1; l >= 0; l--)
-        for (int i = 0; i < 3; i++) h = (h << 1) | ((c[i] >> l) & 1u);
-    return h;
+    for (uint32_t q = top; q > 1; q >>= 1) g ^= (q - 1) & (0u - ((c2 & q) != 0));
+    c0 ^= g;
+    c1 ^= g;
+    c2 ^= g;
+    /* Interleave: level by level, axis 0 first (bit l of axis i -> bit 3l + 2 - i). */
+    uint32_t keep = bits >= 32 ? ~0u : ((uint32_t)1 << bits) - 1;
+    return spread3(c0 & keep) << 2 | spread3(c1 & keep) << 1 | spread3(c2 & keep);
 }
 
 static uint64_t mix64(uint64_t z) {

@@ -68,6 +68,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
         if (map[i] >= 0) memcpy(m->tm.tensor + 6 * (size_t)map[i], ss->mf[i].m, 6 * sizeof(double));
 
     S->histogram_width = 0.25;
+    double rho2_sum = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         const as_star *st = ss->stars[v];
         for (int32_t k = 0; k < st->nrf; k++) {
@@ -98,6 +99,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                 double r2 = rho * rho / S->histogram_width;
                 size_t bin = r2 < ANISTAR_HISTOGRAM_BINS - 1 ? (size_t)r2 : ANISTAR_HISTOGRAM_BINS - 1;
                 S->histogram[bin]++;
+                rho2_sum += rho * rho;
                 const as_star *sw = ss->stars[w3];
                 int32_t idx = as_star_find(sw, f->g);
                 if (idx >= 0 && sw->rf[idx].r > S->r_max) S->r_max = sw->rf[idx].r;
@@ -112,6 +114,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     }
     S->vertices = m->tm.nv;
     S->facets = m->tm.nt;
+    S->rho2_mean = m->tm.nt ? rho2_sum / (3.0 * (double)m->tm.nt) : 0;
     S->inconsistent_facets = ss->ninc;
     S->poles = (size_t)(ss->first_site - 8);
     S->complete = complete;

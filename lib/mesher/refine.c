@@ -3,6 +3,7 @@
  * progress (DESIGN.md 4.5, paper 4.1, 4.2, 5.1, 5.3). See refine.h and mesher.h.
  */
 #include "mesher/refine.h"
+#include "mesher/optimize.h"
 
 #include <math.h>
 #include <string.h>
@@ -514,8 +515,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     uint64_t steps = 0;
     int requeues = 0;
     while (s == ANISTAR_OK) {
-        int rule;
-        int32_t v;
+        int rule = -1;
+        int32_t v = -1;
         as_rfacet f;
         if ((s = next_job(&R, &rule, &v, &f)) != ANISTAR_OK) break;
         if (rule < 0) {
@@ -560,6 +561,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     if (s == ANISTAR_OK) {
         R.cnt.t_total = t2 - t0;
         s = as_mesher_output(ss, prm, &R.cnt, complete, out);
+        if (s == ANISTAR_OK && complete && prm->optimize) s = as_mesher_optimize(ss, prm, out);
         if (s == ANISTAR_OK) {
             double t3 = now_seconds();
             (*out)->stats.seconds_output = t3 - t2;

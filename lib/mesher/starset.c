@@ -294,6 +294,8 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->list, ss->cap_list * sizeof *ss->list);
     as_free(ctx, ss->batch, ss->cap_batch * sizeof *ss->batch);
     as_free(ctx, ss->rebuild, ss->cap_rebuild * sizeof *ss->rebuild);
+    as_free(ctx, ss->regrow, ss->cap_regrow * sizeof *ss->regrow);
+    as_free(ctx, ss->regrow_box, ss->cap_regrow_box * 6 * sizeof *ss->regrow_box);
     as_free(ctx, ss->hints, ss->cap_hints * sizeof *ss->hints);
     as_free(ctx, ss->keep, ss->cap_keep * sizeof *ss->keep);
     as_idlist_free(ctx, &ss->cand);
@@ -455,23 +457,105 @@ static uint32_t next_epoch(as_starset *ss) {
  * large zone at once would fill the star with sites its final zone does not hold (the
  * star's Delaunay work grows with them).
  */
+/* The first search radius (in M_v) for the candidates of an open star: three times its
+ * largest restricted facet radius, or twice the distance to its nearest site; 0 when it
+ * has neither (no limit). */
+static double open_radius(const as_starset *ss, const as_star *st, const as_metric_frame *mf) {
+    double r = 0;
+    for (int32_t i = 0; i < st->nrf; i++)
+        if (st->rf[i].r > r) r = st->rf[i].r;
+    if (r > 0) return 3 * r;
+    const double *c = ss->xyz + 3 * (size_t)st->gid;
+    double best = INFINITY;
+    for (int32_t k = 0; k < st->del.nv; k++) {
+        int64_t g = st->del.gid[k];
+        if (g < 8 || g == st->gid) continue;
+        double dd = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)g);
+        if (dd < best) best = dd;
+    }
+    return isfinite(best) ? 2 * best : 0;
+}
+
+/* The fresh facets of closed star st whose inflated surface ball is not inside the
+ * inflated ball of one of the facets old[0..nold) it replaced (a sufficient test of
+ * containment in their union): 1 and the box of those balls in lo, hi, or 0. */
+static int zone_grew(const as_star *st, const as_metric_frame *mf, const as_rfacet *old,
+                     int32_t nold, double lo[3], double hi[3]) {
+    if (!st->closed) return 0;
+    int grew = 0;
+    for (int32_t i = 0; i < st->nrf; i++) {
+        const as_rfacet *f = &st->rf[i];
+        if (!f->fresh) continue;
+        int in = 0;
+        for (int32_t j = 0; j < nold && !in; j++)
+            in = as_metric_dist(mf, f->c, old[j].c) + AS_STAR_ZONE_INFLATE * f->r <=
+                 AS_STAR_ZONE_INFLATE * old[j].r;
+        if (in) continue;
+        double h[3];
+        as_metric_ellipsoid_box(mf, f->r * AS_STAR_ZONE_INFLATE * (1 + 1e-9), h);
+        for (int k = 0; k < 3; k++) {
+            double a = f->c[k] - h[k], b = f->c[k] + h[k];
+            if (!grew || a < lo[k]) lo[k] = a;
+            if (!grew || b > hi[k]) hi[k] = b;
+        }
+        grew = 1;
+    }
+    return grew;
+}
+
+static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric_frame *mf,
+                                    uint32_t ep, const double *box);
+
 static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
                                 uint32_t ep) {
+    return grow_star_box(ss, st, mf, ep, NULL);
+}
+
+/* grow_star; box (lo then hi), when not NULL, replaces the first query's box. */
+static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric_frame *mf,
+                                    uint32_t ep, const double *box) {
     anistar_status s;
     const double *c = ss->xyz + 3 * (size_t)st->gid;
     size_t nc = 0;
-    int query = 1;
+    int query = 1, limited = 0;
+    double rho = 0;
     for (;;) {
         if (query) {
-            /* an open star's zone is its whole Delaunay region, far larger than the final
-             * one: query again after each of its rounds; a closed star's box once */
-            if ((s = as_kdtree_box_any(ss->ctx, ss->kd, st->lo, st->hi, 0, &ss->ids)) !=
-                ANISTAR_OK)
+            /* design: an open star's zone is its whole Delaunay region, which reaches far
+             * from S (to the box corners): its box holds a large part of all the sites.
+             * Search it by growing M_v-balls around v instead (doubling the radius when a
+             * ball holds no conflicting site), and query again after each round; a closed
+             * star's box once. */
+            double lo[3], hi[3];
+            memcpy(lo, box ? box : st->lo, sizeof lo);
+            memcpy(hi, box ? box + 3 : st->hi, sizeof hi);
+            box = NULL;
+            limited = 0;
+            if (!st->closed) {
+                if (rho == 0) rho = open_radius(ss, st, mf);
+                if (rho > 0) {
+                    double h[3];
+                    as_metric_ellipsoid_box(mf, rho, h);
+                    for (int k = 0; k < 3; k++) {
+                        if (c[k] - h[k] > lo[k]) {
+                            lo[k] = c[k] - h[k];
+                            limited = 1;
+                        }
+                        if (c[k] + h[k] < hi[k]) {
+                            hi[k] = c[k] + h[k];
+                            limited = 1;
+                        }
+                    }
+                }
+            }
+            if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
                 return s;
             nc = 0;
             for (size_t k = 0; k < ss->ids.n; k++) {
                 int32_t q = ss->ids.ids[k];
                 if (ss->stamp[q] == ep) continue;
+                /* beyond the ball: left for a larger radius (not stamped) */
+                if (limited && !(as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q) <= rho)) continue;
                 if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nc, q)) != ANISTAR_OK)
                     return s;
                 nc++;
@@ -490,7 +574,14 @@ static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_fra
             ss->batch[nb++] = q;
         }
         nc = nb;
-        if (nc == 0) return ANISTAR_OK;
+        if (nc == 0) {
+            if (!st->closed && limited) {
+                rho *= 2; /* nothing conflicts in this ball: a larger one */
+                query = 1;
+                continue;
+            }
+            return ANISTAR_OK;
+        }
         size_t take = AS_STARSET_BATCH;
         if (nc > take) {
             for (size_t i = 0; i < take; i++) {
@@ -562,7 +653,7 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
         const as_star *sv = ss->stars[v];
         for (int32_t i = 0; i < sv->nrf; i++) {
             const int32_t *g = sv->rf[i].g;
-            if (with_neighbours && g[0] != gid && g[1] != gid && g[2] != gid) continue;
+            if (with_neighbours == 1 && g[0] != gid && g[1] != gid && g[2] != gid) continue;
             for (int j = 0; j < 3; j++) {
                 int32_t q = g[j];
                 if (q < 8 || ss->stamp[q] == ep) continue;
@@ -579,6 +670,38 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
     }
     ss->star_builds++;
     return grow_star(ss, st, mf, ep);
+}
+
+/* Position of triple g in the sorted facets keep[0..n), or -1. */
+static int32_t find_keep(const as_rfacet *keep, int32_t n, const int32_t g[3]) {
+    int32_t lo = 0, hi = n;
+    while (lo < hi) {
+        int32_t mid = lo + (hi - lo) / 2;
+        int c = cmp_g3(keep[mid].g, g);
+        if (c == 0) return mid;
+        if (c < 0) lo = mid + 1;
+        else hi = mid;
+    }
+    return -1;
+}
+
+/* Offer star v the sites of box (lo, hi: where its zone grew, see zone_grew) and apply
+ * the difference with its facets from before. */
+static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) {
+    as_star *st = ss->stars[v];
+    anistar_status s;
+    if ((size_t)st->nrf > ss->cap_keep &&
+        as_grow(ss->ctx, (void **)&ss->keep, &ss->cap_keep, (size_t)st->nrf, sizeof *ss->keep))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    int32_t nkeep = st->nrf;
+    if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
+    uint32_t ep = next_epoch(ss);
+    for (int32_t k = 0; k < st->del.nv; k++) ss->stamp[st->del.gid[k]] = ep;
+    if ((s = grow_star_box(ss, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
+    ss->zone_regrowths++;
+    for (int32_t k = 0; k < st->nrf; k++)
+        st->rf[k].fresh = find_keep(ss->keep, nkeep, st->rf[k].g) < 0;
+    return apply_diff(ss, v, ss->keep, nkeep);
 }
 
 /* Rebuild star v from its neighbours and the kd-tree (as a new star), then apply the
@@ -608,23 +731,12 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
     if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
     st->nv_base = st->del.nv;
     ss->star_rebuilds++;
-    /* the queue flags of facets that survived stay valid: copy them over */
+    /* the queue flags of facets that survived stay valid: copy them over; the others are
+     * new since before the compaction (events) */
     for (int32_t k = 0; k < st->nrf; k++) {
-        int32_t lo = 0, hi = nkeep;
-        while (lo < hi) {
-            int32_t mid = (lo + hi) / 2;
-            int c = cmp_g3(ss->keep[mid].g, st->rf[k].g);
-            if (c == 0) {
-                lo = mid;
-                break;
-            }
-            if (c < 0) lo = mid + 1;
-            else hi = mid;
-        }
-        if (lo < nkeep && cmp_g3(ss->keep[lo].g, st->rf[k].g) == 0) {
-            st->rf[k].queued = ss->keep[lo].queued;
-            st->rf[k].fresh = 0;
-        }
+        int32_t o = find_keep(ss->keep, nkeep, st->rf[k].g);
+        if (o >= 0) st->rf[k].queued = ss->keep[o].queued;
+        st->rf[k].fresh = o < 0;
     }
     return apply_diff(ss, v, ss->keep, nkeep);
 }
@@ -655,7 +767,22 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         ss->star_updates++;
         if ((s = apply_diff(ss, v, ss->sc.old, ss->sc.nold)) != ANISTAR_OK) return s;
         /* design: a star whose point count doubled since it was built holds points that
-         * entered while its conflict zone was large; compact it after this insertion */
+         * entered while its conflict zone was large; compact it after this insertion.
+         * Rebuild it too when its zone grew: paper 5.3 says zones only shrink, but on a
+         * curved or thin surface a new facet's dual edge can cross S far away, and the
+         * sites of its surface ball were never offered to this star. */
+        double zb[6];
+        if (zone_grew(sv, &ss->mf[v], ss->sc.old, ss->sc.nold, zb, zb + 3)) {
+            if ((s = push_i32(ss->ctx, &ss->regrow, &ss->cap_regrow, ss->nregrow, v)) !=
+                ANISTAR_OK)
+                return s;
+            if (ss->nregrow + 1 > ss->cap_regrow_box &&
+                as_grow(ss->ctx, (void **)&ss->regrow_box, &ss->cap_regrow_box,
+                        ss->nregrow + 1, 6 * sizeof *ss->regrow_box))
+                return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+            memcpy(ss->regrow_box + 6 * ss->nregrow, zb, sizeof zb);
+            ss->nregrow++;
+        }
         if (sv->closed && sv->del.nv > 24 && sv->del.nv > 2 * sv->nv_base) {
             if ((s = push_i32(ss->ctx, &ss->rebuild, &ss->cap_rebuild, ss->nrebuild, v)) !=
                 ANISTAR_OK)
@@ -664,10 +791,13 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         }
     }
     /* 2. p's star */
-    if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 1)) != ANISTAR_OK) return s;
+    if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 2)) != ANISTAR_OK) return s;
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;
+    for (size_t k = 0; k < ss->nregrow; k++)
+        if ((s = regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k)) != ANISTAR_OK) return s;
+    ss->nregrow = 0;
     for (size_t k = 0; k < ss->nrebuild; k++)
         if ((s = compact_star(ss, ss->rebuild[k])) != ANISTAR_OK) return s;
     ss->nrebuild = 0;

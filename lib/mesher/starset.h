@@ -82,11 +82,15 @@ typedef struct as_starset {
     as_star *spare;          /* a star for simulations (Pick_valid) */
     int32_t *rebuild;        /* stars to compact after the current insertion */
     size_t nrebuild, cap_rebuild;
+    int32_t *regrow;         /* stars whose zone grew in the current insertion ... */
+    size_t nregrow, cap_regrow;
+    double *regrow_box;      /* ... and the box where it grew (lo, hi: 6 per star) */
+    size_t cap_regrow_box;
     as_rfacet *keep;         /* a star's facets before its compaction */
     size_t cap_keep;
 
     /* statistics */
-    uint64_t star_updates, star_builds, conflict_tests, star_rebuilds;
+    uint64_t star_updates, star_builds, conflict_tests, star_rebuilds, zone_regrowths;
 } as_starset;
 
 /* Pack / unpack a sorted triple. */

@@ -1,0 +1,234 @@
+/*
+ * starmove.c — move one site of the star set, with an exact undo (DESIGN.md 4.9, paper
+ * 6.2). See starmove.h for the model and the design choices.
+ */
+#include "mesher/starmove.h"
+
+#include <string.h>
+
+void as_starmove_free(anistar_context *ctx, as_starmove *mv) {
+    for (size_t k = 0; k < mv->n; k++)
+        if (mv->old[k]) {
+            as_star_destroy(ctx, mv->old[k]);
+            as_free(ctx, mv->old[k], sizeof *mv->old[k]);
+        }
+    as_free(ctx, mv->ids, mv->cap * sizeof *mv->ids);
+    as_free(ctx, mv->old, mv->cap * sizeof *mv->old);
+    as_free(ctx, mv->seeds, mv->cap_seeds * sizeof *mv->seeds);
+    memset(mv, 0, sizeof *mv);
+}
+
+static void star_free(anistar_context *ctx, as_star *st) {
+    if (!st) return;
+    as_star_destroy(ctx, st);
+    as_free(ctx, st, sizeof *st);
+}
+
+/* 1 if site q is a vertex of star st's triangulation. */
+static int holds(const as_star *st, int32_t q) {
+    const as_del3 *d = &st->del;
+    for (int32_t i = 0; i < d->nv; i++)
+        if (d->gid[i] == q) return 1;
+    return 0;
+}
+
+/* Make room for n touched stars (ids and old pointers grow together); the first keep
+ * entries of both are preserved. */
+static anistar_status reserve_touched(anistar_context *ctx, as_starmove *mv, size_t n,
+                                      size_t keep) {
+    if (n <= mv->cap) return ANISTAR_OK;
+    size_t cap = mv->cap ? mv->cap : 16;
+    while (cap < n) cap *= 2;
+    int32_t *ids = as_alloc_array(ctx, cap, sizeof *ids);
+    as_star **old = as_alloc_array(ctx, cap, sizeof *old);
+    if (!ids || !old) {
+        as_free(ctx, ids, cap * sizeof *ids);
+        as_free(ctx, old, cap * sizeof *old);
+        return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (touched stars)");
+    }
+    if (keep) {
+        memcpy(ids, mv->ids, keep * sizeof *ids);
+        memcpy(old, mv->old, keep * sizeof *old);
+    }
+    as_free(ctx, mv->ids, mv->cap * sizeof *mv->ids);
+    as_free(ctx, mv->old, mv->cap * sizeof *mv->old);
+    mv->ids = ids;
+    mv->old = old;
+    mv->cap = cap;
+    return ANISTAR_OK;
+}
+
+/*
+ * The touched stars of moving v from x to p into mv->ids (v first, then ascending, no
+ * duplicates); mv->n stays 0 (no old star is held yet).
+ * design: the holders of v among the stars whose box contains x, and the stars whose box
+ *   contains p that hold v or whose zone p conflicts with (as_star_conflicts, exact).
+ */
+static anistar_status touched_stars(as_starset *ss, as_starmove *mv, int32_t v,
+                                    const double x[3], const double p[3], size_t *count) {
+    anistar_context *ctx = ss->ctx;
+    anistar_status s;
+    size_t m = 0;
+    if ((s = reserve_touched(ctx, mv, 1, 0)) != ANISTAR_OK) return s;
+    mv->ids[m++] = v;
+    for (int pass = 0; pass < 2; pass++) {
+        const double *q = pass == 0 ? x : p;
+        if ((s = as_boxindex_query_point(ctx, ss->bi, q, &ss->cand)) != ANISTAR_OK) return s;
+        for (size_t k = 0; k < ss->cand.n; k++) {
+            int32_t w = ss->cand.ids[k];
+            const as_star *st = ss->stars[w];
+            if (w == v || !st) continue;
+            int touch = holds(st, v);
+            if (!touch && pass == 1) {
+                ss->conflict_tests++;
+                touch = as_star_conflicts(st, &ss->mf[w], p, v, NULL);
+            }
+            if (!touch) continue;
+            if ((s = reserve_touched(ctx, mv, m + 1, m)) != ANISTAR_OK) return s;
+            mv->ids[m++] = w;
+        }
+    }
+    /* sort the others and drop duplicates (a star can be found from x and from p) */
+    as_ids_sort(mv->ids + 1, m - 1);
+    size_t u = 1;
+    for (size_t k = 1; k < m; k++)
+        if (u == 1 || mv->ids[k] != mv->ids[u - 1]) mv->ids[u++] = mv->ids[k];
+    *count = u;
+    return ANISTAR_OK;
+}
+
+/*
+ * A new star of site w (current position and metric) into *out: the corners, w, the
+ * sites of old's restricted facets other than skip, then growth from the kd-tree.
+ */
+static anistar_status new_star(as_starset *ss, as_starmove *mv, int32_t w, const as_star *old,
+                               int32_t skip, as_star **out) {
+    anistar_context *ctx = ss->ctx;
+    anistar_status s;
+    *out = NULL;
+    as_star *st = as_alloc(ctx, sizeof *st);
+    if (!st) return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (star)");
+    as_star_init(st, ctx);
+    uint32_t ep = as_starset_next_epoch(ss);
+    ss->stamp[w] = ep;
+    size_t ns = 0;
+    for (int32_t i = 0; i < old->nrf; i++)
+        for (int j = 0; j < 3; j++) {
+            int32_t q = old->rf[i].g[j];
+            if (q < 8 || q == skip || ss->stamp[q] == ep) continue;
+            ss->stamp[q] = ep;
+            if (ns == mv->cap_seeds &&
+                as_grow(ctx, (void **)&mv->seeds, &mv->cap_seeds, ns + 1, sizeof *mv->seeds)) {
+                star_free(ctx, st);
+                return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (seeds)");
+            }
+            mv->seeds[ns++] = q;
+        }
+    const as_metric_frame *mf = &ss->mf[w];
+    s = as_star_build(&ss->env, st, mf, w, &ss->sc);
+    if (s == ANISTAR_OK && ns)
+        s = as_star_insert(&ss->env, st, mf, mv->seeds, (int32_t)ns, &ss->sc, NULL);
+    if (s == ANISTAR_OK) s = as_starset_grow_star(ss, st, mf, ep);
+    if (s != ANISTAR_OK) {
+        star_free(ctx, st);
+        return s;
+    }
+    st->nv_base = st->del.nv;
+    ss->star_rebuilds++;
+    *out = st;
+    return ANISTAR_OK;
+}
+
+/* Put the old stars 0..mv->n back (reverse diffs), free the new ones, restore v. */
+static anistar_status revert(as_starset *ss, as_starmove *mv) {
+    anistar_context *ctx = ss->ctx;
+    anistar_status st = ANISTAR_OK;
+    for (size_t k = mv->n; k-- > 0;) {
+        int32_t id = mv->ids[k];
+        as_star *nw = ss->stars[id];
+        ss->stars[id] = mv->old[k];
+        mv->old[k] = NULL;
+        if (st == ANISTAR_OK) st = as_starset_apply_diff(ss, id, nw->rf, nw->nrf);
+        star_free(ctx, nw);
+    }
+    mv->n = 0;
+    memcpy(ss->xyz + 3 * (size_t)mv->v, mv->old_x, sizeof mv->old_x);
+    ss->mf[mv->v] = mv->old_mf;
+    mv->v = -1;
+    mv->stale++; /* the kd-tree entry at the new position */
+    ss->nev = 0;
+    ss->nnewinc = 0;
+    return st;
+}
+
+anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, const double p[3]) {
+    anistar_context *ctx = ss->ctx;
+    anistar_status s;
+    mv->n = 0;
+    mv->v = -1;
+    if (v < ss->first_site || v >= ss->n || !ss->stars[v])
+        return as_fail(ctx, ANISTAR_EINVAL, "optimize: %d is not a surface site", (int)v);
+    const double *x = ss->xyz + 3 * (size_t)v;
+    as_metric_frame mfp;
+    if ((s = as_starset_metric(ss, p, &mfp)) != ANISTAR_OK) return s;
+    size_t count;
+    if ((s = touched_stars(ss, mv, v, x, p, &count)) != ANISTAR_OK) return s;
+    if ((s = as_kdtree_insert(ctx, ss->kd, p, v)) != ANISTAR_OK) return s;
+    /* from here on the star set changes; revert() undoes what was done */
+    mv->v = v;
+    memcpy(mv->old_x, x, sizeof mv->old_x);
+    mv->old_mf = ss->mf[v];
+    memcpy(ss->xyz + 3 * (size_t)v, p, 3 * sizeof(double));
+    ss->mf[v] = mfp;
+    for (size_t k = 0; k < count; k++) {
+        int32_t id = mv->ids[k];
+        as_star *old = ss->stars[id], *nw;
+        if ((s = new_star(ss, mv, id, old, id == v ? -1 : v, &nw)) != ANISTAR_OK) break;
+        ss->stars[id] = nw;
+        mv->old[k] = old;
+        mv->n = k + 1;
+        if ((s = as_starset_apply_diff(ss, id, old->rf, old->nrf)) != ANISTAR_OK) break;
+    }
+    if (s != ANISTAR_OK) {
+        (void)revert(ss, mv);
+        return s;
+    }
+    ss->nev = 0; /* design: the refiner is done; the optimiser reads the stars directly */
+    ss->nnewinc = 0;
+    return ANISTAR_OK;
+}
+
+void as_starmove_commit(as_starset *ss, as_starmove *mv) {
+    for (size_t k = 0; k < mv->n; k++) {
+        star_free(ss->ctx, mv->old[k]);
+        mv->old[k] = NULL;
+    }
+    mv->n = 0;
+    if (mv->v >= 0) mv->stale++; /* the kd-tree entry at the old position */
+    mv->v = -1;
+}
+
+anistar_status as_starmove_undo(as_starset *ss, as_starmove *mv) {
+    if (mv->v < 0) return ANISTAR_OK;
+    anistar_status s = revert(ss, mv);
+    if (s != ANISTAR_OK && s != ANISTAR_ENOMEM)
+        return as_fail(ss->ctx, ANISTAR_EINTERNAL, "optimize: undo of a move failed");
+    return s;
+}
+
+anistar_status as_starmove_flush(as_starset *ss, as_starmove *mv) {
+    anistar_context *ctx = ss->ctx;
+    size_t n = (size_t)(ss->n - 8);
+    if (ss->n <= 8) return ANISTAR_OK;
+    if (n > mv->cap_seeds &&
+        as_grow(ctx, (void **)&mv->seeds, &mv->cap_seeds, n, sizeof *mv->seeds))
+        return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (kd-tree)");
+    for (size_t i = 0; i < n; i++) mv->seeds[i] = (int32_t)(8 + i);
+    as_kdtree *kd = NULL;
+    anistar_status s = as_kdtree_build(ctx, ss->xyz + 24, mv->seeds, n, &kd);
+    if (s != ANISTAR_OK) return s;
+    as_kdtree_free(ctx, ss->kd);
+    ss->kd = kd;
+    mv->stale = 0;
+    return ANISTAR_OK;
+}

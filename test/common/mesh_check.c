@@ -1,0 +1,530 @@
+/*
+ * mesh_check.c — independent checks of a mesher output (see mesh_check.h).
+ */
+#include "mesh_check.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test_util.h"
+
+#include "geom/del3.h"
+#include "geom/metric.h"
+
+void mc_report_init(mc_report *r) {
+    memset(r, 0, sizeof *r);
+}
+
+/* Count a violation; keep the first description. */
+static void mc_fail(mc_report *r, const char *fmt, ...) {
+    if (r->failures++ == 0) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(r->first, sizeof r->first, fmt, ap);
+        va_end(ap);
+    }
+}
+
+static void *xmalloc(size_t n) {
+    void *p = malloc(n ? n : 1);
+    assert_non_null(p);
+    return p;
+}
+
+void mc_assert_ok(const mc_report *r, const char *what) {
+    if (r->failures) fail_msg("%s: %zu violation(s); first: %s", what, r->failures, r->first);
+}
+
+/* ---- topology ------------------------------------------------------------------------ */
+
+void mc_check_topology(anistar_context *ctx, const as_trimesh *m, const mc_limits *lim,
+                       mc_report *r) {
+    as_topology top;
+    anistar_status st = as_topology_check(ctx, m->nv, m->xyz, m->nt, m->tri, &top);
+    if (st != ANISTAR_OK) {
+        mc_fail(r, "topology check failed: %s", anistar_last_error(ctx));
+        return;
+    }
+    if (!top.closed_manifold)
+        mc_fail(r, "not a closed 2-manifold: %zu border, %zu non-manifold edges, %zu "
+                   "non-manifold vertices", top.border_edges, top.nonmanifold_edges,
+                top.nonmanifold_vertices);
+    /* consistency here; outward (relative to the solid, so an inner cavity's shell faces
+     * into the cavity) is checked against the surface's side oracle in
+     * mc_check_on_surface */
+    if (top.misoriented_edges || top.nonorientable)
+        mc_fail(r, "not consistently oriented: %zu misoriented edges", top.misoriented_edges);
+    if (top.used_vertices != m->nv)
+        mc_fail(r, "%zu of %zu vertices in no triangle", m->nv - top.used_vertices, m->nv);
+    if (top.euler != lim->chi)
+        mc_fail(r, "Euler characteristic %lld, S has %lld", top.euler, lim->chi);
+    if ((long long)m->nt != 2 * (long long)m->nv - 2 * lim->chi)
+        mc_fail(r, "F = %zu but 2V - 2chi = %lld", m->nt, 2 * (long long)m->nv - 2 * lim->chi);
+}
+
+/* ---- shape and distortion ----------------------------------------------------------- */
+
+static double dot3(const double a[3], const double b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static void sub3(const double a[3], const double b[3], double c[3]) {
+    for (int k = 0; k < 3; k++) c[k] = a[k] - b[k];
+}
+static void cross3(const double a[3], const double b[3], double c[3]) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* Circumcenter of the triangle A, B, C (in its plane); -1 when degenerate. */
+static int tri_center(const double A[3], const double B[3], const double C[3], double o[3]) {
+    double u[3], v[3], w[3], t[3];
+    sub3(B, A, u);
+    sub3(C, A, v);
+    cross3(u, v, w);
+    double w2 = dot3(w, w);
+    if (!(w2 > 0)) return -1;
+    /* o - A = (|u|^2 v - |v|^2 u) x w / (2 |w|^2) */
+    double uu = dot3(u, u), vv = dot3(v, v);
+    double s[3] = {uu * v[0] - vv * u[0], uu * v[1] - vv * u[1], uu * v[2] - vv * u[2]};
+    cross3(s, w, t);
+    for (int k = 0; k < 3; k++) o[k] = A[k] + t[k] / (2 * w2);
+    return 0;
+}
+
+/* Radius-edge ratio of a, b, c stretched by mf: circumradius / shortest edge. */
+static double radius_edge(const as_metric_frame *mf, const double *a, const double *b,
+                          const double *c) {
+    double A[3], B[3], C[3], o[3], e[3];
+    as_metric_apply(mf, a, A);
+    as_metric_apply(mf, b, B);
+    as_metric_apply(mf, c, C);
+    double l = INFINITY;
+    const double *P[3] = {A, B, C};
+    for (int k = 0; k < 3; k++) {
+        sub3(P[(k + 1) % 3], P[k], e);
+        double le = sqrt(dot3(e, e));
+        if (le < l) l = le;
+    }
+    if (tri_center(A, B, C, o) != 0 || !(l > 0)) return INFINITY;
+    sub3(o, A, e);
+    return sqrt(dot3(e, e)) / l;
+}
+
+void mc_check_shape(const as_trimesh *m, const mc_limits *lim, mc_report *r) {
+    if (!m->tensor) {
+        mc_fail(r, "the mesh has no per-vertex tensors");
+        return;
+    }
+    for (size_t t = 0; t < m->nt; t++) {
+        const int32_t *tri = m->tri + 3 * t;
+        as_metric_frame mf[3];
+        int bad = 0;
+        for (int k = 0; k < 3; k++)
+            if (as_metric_frame_init(&mf[k], m->tensor + 6 * (size_t)tri[k]) != 0) bad = 1;
+        if (bad) {
+            mc_fail(r, "facet %zu: a vertex tensor is not positive definite", t);
+            continue;
+        }
+        for (int k = 0; k < 3; k++) {
+            double rho = radius_edge(&mf[k], m->xyz + 3 * (size_t)tri[0],
+                                     m->xyz + 3 * (size_t)tri[1], m->xyz + 3 * (size_t)tri[2]);
+            if (rho > r->rho_max) r->rho_max = rho;
+            /* slack: the ratio is recomputed here in another order of operations */
+            if (!(rho <= lim->rho0 * (1 + 1e-12)))
+                mc_fail(r, "facet %zu (%d %d %d): radius-edge ratio %.17g > rho0 %g in the "
+                           "metric of vertex %d", t, tri[0], tri[1], tri[2], rho, lim->rho0,
+                        tri[k]);
+        }
+        for (int a = 0; a < 3; a++)
+            for (int b = a + 1; b < 3; b++) {
+                double g = as_metric_distortion(&mf[a], &mf[b]);
+                if (g > r->gamma_max) r->gamma_max = g;
+                if (!(g < lim->gamma0))
+                    mc_fail(r, "facet %zu: distortion %.17g >= gamma0 %g between vertices %d "
+                               "and %d", t, g, lim->gamma0, tri[a], tri[b]);
+            }
+    }
+}
+
+/* ---- on the surface ------------------------------------------------------------------ */
+
+void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_trimesh *m,
+                         const mc_limits *lim, mc_report *r) {
+    int has_f = s->ops->eval != NULL;
+    for (size_t i = 0; i < m->nv; i++) {
+        const double *p = m->xyz + 3 * i;
+        if (has_f) {
+            double f, g[3];
+            if (as_surface_eval(ctx, s, p, 1, &f, g, NULL) != ANISTAR_OK) {
+                mc_fail(r, "vertex %zu: %s", i, anistar_last_error(ctx));
+                continue;
+            }
+            double d = fabs(f) / sqrt(dot3(g, g));
+            if (d > r->dist_max) r->dist_max = d;
+            if (!(d <= lim->on_tol))
+                mc_fail(r, "vertex %zu: |f|/|grad f| = %g > %g", i, d, lim->on_tol);
+        }
+        double q[3], e[3];
+        if (as_surface_project(ctx, s, p, q) != ANISTAR_OK) {
+            mc_fail(r, "vertex %zu: projection failed: %s", i, anistar_last_error(ctx));
+            continue;
+        }
+        sub3(q, p, e);
+        double d = sqrt(dot3(e, e));
+        if (d > r->dist_max) r->dist_max = d;
+        if (!(d <= lim->on_tol))
+            mc_fail(r, "vertex %zu: distance %g to its projection on S > %g", i, d, lim->on_tol);
+    }
+    /* outward: each triangle's normal against S's outward normal at the projection of
+     * its centroid; at least 99% must agree (a coarse triangle across a fold of S may
+     * project where S faces elsewhere), and a consistently oriented component facing
+     * inward would fail them all */
+    size_t agree = 0, tested = 0;
+    for (size_t t = 0; t < m->nt; t++) {
+        const double *a = m->xyz + 3 * (size_t)m->tri[3 * t],
+                     *b = m->xyz + 3 * (size_t)m->tri[3 * t + 1],
+                     *c = m->xyz + 3 * (size_t)m->tri[3 * t + 2];
+        double u[3], v[3], n[3], g[3], q[3], ns[3];
+        sub3(b, a, u);
+        sub3(c, a, v);
+        cross3(u, v, n);
+        for (int k = 0; k < 3; k++) g[k] = (a[k] + b[k] + c[k]) / 3;
+        int sing = 0;
+        if (as_surface_project(ctx, s, g, q) != ANISTAR_OK ||
+            as_surface_normal_at(ctx, s, q, ns, &sing) != ANISTAR_OK) {
+            mc_fail(r, "triangle %zu: surface normal failed: %s", t, anistar_last_error(ctx));
+            return;
+        }
+        if (sing || !(dot3(n, n) > 0)) continue;
+        tested++;
+        agree += dot3(n, ns) > 0;
+    }
+    if (!(agree >= tested - tested / 100))
+        mc_fail(r, "only %zu of %zu triangles face outward", agree, tested);
+}
+
+/* ---- stars ---------------------------------------------------------------------------- */
+
+static int cmp_tri(const void *a, const void *b) {
+    const int32_t *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return 0;
+}
+static void sort3(int32_t g[3]) {
+    for (int a = 0; a < 3; a++)
+        for (int b = a + 1; b < 3; b++)
+            if (g[b] < g[a]) {
+                int32_t t = g[a];
+                g[a] = g[b];
+                g[b] = t;
+            }
+}
+
+/* Reorder idx[lo..hi] so that the k smallest keys come first (iterative quickselect). */
+static void select_k(int32_t *idx, const double *key, size_t n, size_t k) {
+    size_t lo = 0, hi = n;
+    while (hi - lo > 1 && k > lo && k < hi) {
+        double piv = key[idx[lo + (hi - lo - 1) / 2]]; /* never the last: j < hi - 1 */
+        size_t i = lo, j = hi - 1;
+        for (;;) {
+            while (key[idx[i]] < piv) i++;
+            while (key[idx[j]] > piv) j--;
+            if (i >= j) break;
+            int32_t t = idx[i];
+            idx[i] = idx[j];
+            idx[j] = t;
+            i++;
+            j--;
+        }
+        /* [lo, j] <= piv <= [j+1, hi) */
+        if (k <= j) hi = j + 1;
+        else lo = j + 1;
+    }
+}
+
+/* Scratch of the star check. */
+typedef struct star_work {
+    int32_t npts;         /* extra + output vertices */
+    double *pts;          /* 3 npts: every point, in global-id order */
+    double *dist2;        /* per output vertex: squared M_i distance to vertex i */
+    int32_t *order;       /* output vertices, K nearest first */
+    double *sel;          /* 3 npts: the points triangulated */
+    int64_t *gid;         /* their global ids */
+    int32_t *vx;          /* their del3 vertices */
+    int32_t *found;       /* 3 per restricted facet */
+    size_t cap_found;
+    double *balls;        /* 4 per tet around the vertex: circumcenter, squared radius */
+    size_t cap_balls;
+} star_work;
+
+/* Rebuild i's triangulation from the extra sites and the k nearest output vertices.
+ * Returns i's del3 vertex, or -1 on failure (reported). */
+static int32_t rebuild(anistar_context *ctx, star_work *w, int32_t nextra, size_t k, size_t i,
+                       const as_metric_frame *mf, as_del3 *d, mc_report *r) {
+    int32_t n = 0;
+    for (int32_t e = 0; e < nextra; e++, n++) {
+        memcpy(w->sel + 3 * (size_t)n, w->pts + 3 * (size_t)e, 3 * sizeof(double));
+        w->gid[n] = e;
+    }
+    int32_t me = -1;
+    for (size_t q = 0; q < k; q++, n++) {
+        int32_t j = w->order[q];
+        if ((size_t)j == i) me = n;
+        memcpy(w->sel + 3 * (size_t)n, w->pts + 3 * (size_t)(nextra + j), 3 * sizeof(double));
+        w->gid[n] = nextra + j;
+    }
+    as_del3_reset(d);
+    anistar_status st = as_del3_insert_points(d, w->sel, w->gid, n, mf, w->vx, NULL);
+    if (st != ANISTAR_OK || me < 0) {
+        mc_fail(r, "vertex %zu: rebuilding its triangulation failed: %s", i,
+                st ? anistar_last_error(ctx) : "the vertex was not selected");
+        return -1;
+    }
+    if ((size_t)n > r->star_points_max) r->star_points_max = (size_t)n;
+    return w->vx[me];
+}
+
+/* Check the star of output vertex i (see mesh_check.h). */
+static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, int32_t nextra,
+                      const as_trimesh *m, const int32_t *vt_start, const int32_t *vt_tris,
+                      const int32_t *sorted_tris, const mc_limits *lim, size_t i, as_del3 *d,
+                      as_del3_buf *buf, mc_report *r) {
+    as_metric_frame mf;
+    if (as_metric_frame_init(&mf, m->tensor + 6 * i) != 0) {
+        mc_fail(r, "vertex %zu: tensor not positive definite", i);
+        return;
+    }
+    size_t nv = m->nv;
+    double yi[3];
+    as_metric_apply(&mf, m->xyz + 3 * i, yi);
+    for (size_t j = 0; j < nv; j++) {
+        double y[3], e[3];
+        as_metric_apply(&mf, m->xyz + 3 * j, y);
+        sub3(y, yi, e);
+        w->dist2[j] = dot3(e, e);
+        w->order[j] = (int32_t)j;
+    }
+    size_t k = nv < 48 ? nv : 48;
+    select_k(w->order, w->dist2, nv, k);
+    int32_t v = rebuild(ctx, w, nextra, k, i, &mf, d, r);
+    if (v < 0) return;
+    for (;;) {
+        if (k == nv) {
+            r->stars_full++;
+            break;
+        }
+        /* certificate: no vertex left out lies in (or on) the circumball of a tet around
+         * v; a vertex beyond 2 rho_max of v cannot, the others are tested one by one */
+        if (as_del3_vertex_tets(d, v, buf) != ANISTAR_OK) {
+            mc_fail(r, "vertex %zu: %s", i, anistar_last_error(ctx));
+            return;
+        }
+        size_t nb = buf->n;
+        if (nb > w->cap_balls) {
+            w->cap_balls = 2 * nb;
+            w->balls = realloc(w->balls, 4 * w->cap_balls * sizeof *w->balls);
+            assert_non_null(w->balls);
+        }
+        double reach = 0;
+        int bounded = 1;
+        for (size_t q = 0; q < nb && bounded; q++) {
+            double *c = w->balls + 4 * q, e[3];
+            if (as_del3_circumcenter(d, buf->a[q], c) != 0) {
+                bounded = 0; /* an infinite tet: v is on the hull of the subset */
+                break;
+            }
+            sub3(c, as_del3_point(d, v), e);
+            c[3] = dot3(e, e);
+            if (4 * c[3] > reach) reach = 4 * c[3];
+        }
+        if (!bounded) {
+            k = 2 * k < nv ? 2 * k : nv;
+            select_k(w->order, w->dist2, nv, k);
+            v = rebuild(ctx, w, nextra, k, i, &mf, d, r);
+            if (v < 0) return;
+            continue;
+        }
+        /* the vertices left out that lie in (or on) a ball move to the selected prefix
+         * (slack 1e-9 for the rounding of the circumcenters and distances) and are
+         * inserted: the triangulation is the same as a rebuild with them (Delaunay with
+         * symbolic perturbation is unique), then the certificate is checked again */
+        size_t nviol = 0;
+        for (size_t q = k; q < nv; q++) {
+            int32_t j = w->order[q];
+            if (w->dist2[j] > reach * (1 + 1e-9)) continue;
+            double y[3], e[3];
+            as_metric_apply(&mf, m->xyz + 3 * (size_t)j, y);
+            for (size_t b = 0; b < nb; b++) {
+                sub3(y, w->balls + 4 * b, e);
+                if (dot3(e, e) <= w->balls[4 * b + 3] * (1 + 1e-9)) {
+                    w->order[q] = w->order[k + nviol];
+                    w->order[k + nviol] = j;
+                    nviol++;
+                    break;
+                }
+            }
+        }
+        if (nviol == 0) break;
+        for (size_t q = k; q < k + nviol; q++) {
+            int32_t j = w->order[q], vx;
+            int rc = as_del3_insert_frame(d, &mf, m->xyz + 3 * (size_t)j, nextra + j, &vx);
+            if (rc != ANISTAR_OK) {
+                mc_fail(r, "vertex %zu: inserting vertex %d failed (%d)", i, (int)j, rc);
+                return;
+            }
+        }
+        k += nviol;
+        if ((size_t)nextra + k > r->star_points_max) r->star_points_max = (size_t)nextra + k;
+    }
+    r->stars_checked++;
+    /* restricted facets of v: dual segment with one end inside S and the other outside */
+    if (as_del3_vertex_facets(d, v, buf) != ANISTAR_OK) {
+        mc_fail(r, "vertex %zu: %s", i, anistar_last_error(ctx));
+        return;
+    }
+    size_t nf = 0;
+    for (size_t q = 0; q < buf->n; q++) {
+        int32_t f = buf->a[q], t[2] = {f >> 2, as_del3_mirror(d, f) >> 2};
+        double c[2][3];
+        int in[2];
+        int ok = 1;
+        for (int h = 0; h < 2; h++) {
+            double cc[3];
+            int side;
+            if (as_del3_circumcenter(d, t[h], cc) != 0) {
+                ok = 0;
+                break;
+            }
+            as_metric_unapply(&mf, cc, c[h]);
+            if (as_surface_side(ctx, s, c[h], &side) != ANISTAR_OK) {
+                mc_fail(r, "vertex %zu: %s", i, anistar_last_error(ctx));
+                return;
+            }
+            in[h] = side < 0;
+        }
+        if (!ok) {
+            mc_fail(r, "vertex %zu: an infinite tet around it (not enclosed by the corners)", i);
+            return;
+        }
+        if (in[0] == in[1]) continue;
+        if (nf == w->cap_found) {
+            w->cap_found *= 2;
+            w->found = realloc(w->found, 3 * w->cap_found * sizeof *w->found);
+            assert_non_null(w->found);
+        }
+        int32_t *g = w->found + 3 * nf++, lv[3];
+        int n = 0;
+        for (int j = 0; j < 4; j++)
+            if (j != (f & 3)) {
+                lv[n] = d->tet_v[4 * (size_t)t[0] + (size_t)j];
+                g[n] = (int32_t)d->gid[lv[n]];
+                n++;
+            }
+        sort3(g);
+        /* surface circumradius: crossing nearest the facet's circumcenter */
+        double fcs[3], fc[3], x[3];
+        int hit = 0;
+        if (tri_center(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
+                       as_del3_point(d, lv[2]), fcs) == 0)
+            as_metric_unapply(&mf, fcs, fc);
+        else
+            for (int h = 0; h < 3; h++) fc[h] = 0.5 * (c[0][h] + c[1][h]);
+        if (as_surface_crossing(ctx, s, c[0], c[1], fc, &hit, x) != ANISTAR_OK || !hit) {
+            mc_fail(r, "vertex %zu: no crossing of a dual segment with S", i);
+            continue;
+        }
+        double rad = as_metric_dist(&mf, x, m->xyz + 3 * i);
+        if (rad > r->r_max) r->r_max = rad;
+        if (!(rad < lim->r0 * (1 + 1e-9)))
+            mc_fail(r, "vertex %zu: facet (%d %d %d) has surface circumradius %.17g >= r0 %g",
+                    i, g[0], g[1], g[2], rad, lim->r0);
+    }
+    qsort(w->found, nf, 3 * sizeof *w->found, cmp_tri);
+    /* the output triangles incident to i, as sorted global ids */
+    size_t no = (size_t)(vt_start[i + 1] - vt_start[i]);
+    int same = no == nf;
+    for (size_t q = 0; same && q < no; q++)
+        if (memcmp(sorted_tris + 3 * (size_t)vt_tris[vt_start[i] + (int32_t)q], w->found + 3 * q,
+                   3 * sizeof(int32_t)) != 0)
+            same = 0;
+    if (!same)
+        mc_fail(r, "vertex %zu: its restricted Delaunay star has %zu facets, the output %zu "
+                   "triangles, and they differ", i, nf, no);
+}
+
+void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *extra,
+                    int32_t nextra, const as_trimesh *m, const mc_limits *lim, size_t stride,
+                    mc_report *r) {
+    if (!m->tensor || m->nv == 0) {
+        mc_fail(r, "the star check needs vertices with tensors");
+        return;
+    }
+    size_t nv = m->nv, nt = m->nt;
+    star_work w;
+    w.npts = nextra + (int32_t)nv;
+    w.pts = xmalloc(3 * (size_t)w.npts * sizeof *w.pts);
+    memcpy(w.pts, extra, 3 * (size_t)nextra * sizeof *w.pts);
+    memcpy(w.pts + 3 * (size_t)nextra, m->xyz, 3 * nv * sizeof *w.pts);
+    w.dist2 = xmalloc(nv * sizeof *w.dist2);
+    w.order = xmalloc(nv * sizeof *w.order);
+    w.sel = xmalloc(3 * (size_t)w.npts * sizeof *w.sel);
+    w.gid = xmalloc((size_t)w.npts * sizeof *w.gid);
+    w.vx = xmalloc((size_t)w.npts * sizeof *w.vx);
+    w.cap_found = 64;
+    w.found = xmalloc(3 * w.cap_found * sizeof *w.found);
+    w.cap_balls = 64;
+    w.balls = xmalloc(4 * w.cap_balls * sizeof *w.balls);
+    /* output triangles as sorted global-id triples, sorted; vertex -> triangles (CSR) in
+     * that order, so each vertex's list comes out sorted */
+    int32_t *tris = xmalloc(3 * nt * sizeof *tris);
+    for (size_t t = 0; t < nt; t++) {
+        for (int k = 0; k < 3; k++) tris[3 * t + k] = m->tri[3 * t + k] + nextra;
+        sort3(tris + 3 * t);
+    }
+    qsort(tris, nt, 3 * sizeof *tris, cmp_tri);
+    int32_t *start = calloc(nv + 1, sizeof *start);
+    int32_t *fill = calloc(nv + 1, sizeof *fill);
+    int32_t *vt = xmalloc(3 * nt * sizeof *vt);
+    assert_non_null(start);
+    assert_non_null(fill);
+    for (size_t q = 0; q < 3 * nt; q++) start[tris[q] - nextra + 1]++;
+    for (size_t i = 0; i < nv; i++) start[i + 1] += start[i];
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            int32_t i = tris[3 * t + k] - nextra;
+            vt[start[i] + fill[i]++] = (int32_t)t;
+        }
+    as_del3 d;
+    as_del3_init(&d, ctx);
+    as_del3_buf buf = {0};
+    if (stride < 1) stride = 1;
+    for (size_t i = 0; i < nv; i += stride)
+        check_one(ctx, s, &w, nextra, m, start, vt, tris, lim, i, &d, &buf, r);
+    as_del3_buf_free(ctx, &buf);
+    as_del3_destroy(&d);
+    free(vt);
+    free(fill);
+    free(start);
+    free(tris);
+    free(w.balls);
+    free(w.found);
+    free(w.vx);
+    free(w.gid);
+    free(w.sel);
+    free(w.order);
+    free(w.dist2);
+    free(w.pts);
+}
+
+void mc_check_all(anistar_context *ctx, const as_surface *s, const double *extra,
+                  int32_t nextra, const as_trimesh *m, const mc_limits *lim, mc_report *r) {
+    mc_check_topology(ctx, m, lim, r);
+    mc_check_shape(m, lim, r);
+    mc_check_on_surface(ctx, s, m, lim, r);
+    mc_check_stars(ctx, s, extra, nextra, m, lim, 1, r);
+}

@@ -1,0 +1,86 @@
+/*
+ * mesh_check.h — shared by the mesher tests (test_mesher, test_e2e): checks of a mesher
+ * output that do not use the mesher's internal state, only the output mesh (vertices,
+ * triangles, per-vertex tensors), the surface oracle, and the sites every star holds
+ * besides the output vertices (the 8 box corners and the poles, paper 5.3).
+ *
+ * Every check adds what it finds to an mc_report (counts, worst values, the first
+ * violation described) instead of asserting, so tests can also show that a damaged mesh
+ * is caught. mc_assert_ok fails the current cmocka test with the first message.
+ */
+#ifndef ANISTAR_MESH_CHECK_H
+#define ANISTAR_MESH_CHECK_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "anistar.h"
+#include "io/meshio.h"
+#include "surface/surface.h"
+
+/* The bounds of the run and what S is. */
+typedef struct mc_limits {
+    double r0, rho0, gamma0; /* the mesher's parameters */
+    long long chi;           /* Euler characteristic of S (2 - 2 genus) */
+    double on_tol;           /* how far (absolute length) an output vertex may be from S */
+} mc_limits;
+
+/* What the checks found. */
+typedef struct mc_report {
+    size_t failures;        /* violations found (0: everything holds) */
+    char first[512];        /* the first violation, described */
+    double rho_max;         /* largest radius-edge ratio over facets x vertex metrics */
+    double r_max;           /* largest surface circumradius r_v(tau) of a star facet */
+    double gamma_max;       /* largest distortion between two vertices of a facet */
+    double dist_max;        /* largest distance from a vertex to S (as measured) */
+    size_t stars_checked;   /* vertices whose star was rebuilt and compared */
+    size_t stars_full;      /* of which rebuilt from every point (no local certificate) */
+    size_t star_points_max; /* most points one local rebuild needed */
+} mc_report;
+
+void mc_report_init(mc_report *r);
+
+/* Closed, oriented (outward) 2-manifold with Euler characteristic lim->chi, and
+ * F = 2V - 2chi; as_topology_check on the arrays. */
+void mc_check_topology(anistar_context *ctx, const as_trimesh *m, const mc_limits *lim,
+                       mc_report *r);
+
+/* Every facet's radius-edge ratio <= rho0 in the metric of each of its three vertices
+ * (own computation: circumradius over shortest edge of the stretched triangle), and the
+ * distortion between its vertices' metrics < gamma0. */
+void mc_check_shape(const as_trimesh *m, const mc_limits *lim, mc_report *r);
+
+/* Every vertex on S: for surfaces given by a function, |f| / |grad f| <= lim->on_tol;
+ * for every kind, the distance to the surface's own projection of the vertex <= on_tol. */
+void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_trimesh *m,
+                         const mc_limits *lim, mc_report *r);
+
+/*
+ * The independent star check, for every vertex i with i % stride == 0 (stride >= 1):
+ * the Delaunay triangulation of F_i applied to {extra sites, output vertices} (global
+ * ids: extra sites 0..nextra-1, then output vertices in output order, the ids the
+ * mesher's symbolic perturbation uses) is rebuilt, and the dual-edge test with the
+ * surface's side oracle gives i's restricted Delaunay star; it must equal the output
+ * triangles incident to i. The surface circumradius r_i(tau) of each of its facets (the
+ * M_i-distance from i to the crossing of the dual segment with S nearest the facet's
+ * circumcenter, as the mesher defines it) must be < r0 (relative slack 1e-9: the
+ * crossing is recomputed here, accurate to 1e-12 R, not copied).
+ * design: the rebuild is local when that is provably the same: the K nearest output
+ * vertices in the M_i distance (K = 48, doubled while needed) plus every extra site are
+ * triangulated; when no vertex left out lies in or on the circumball of a tet around i
+ * (only vertices within 2 rho_max of i can), those tets are empty in the full set, hence
+ * Delaunay there, and they close around i: the star is the full triangulation's.
+ * Otherwise K grows, up to every point.
+ */
+void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *extra,
+                    int32_t nextra, const as_trimesh *m, const mc_limits *lim, size_t stride,
+                    mc_report *r);
+
+/* All four checks above (stars with stride 1). */
+void mc_check_all(anistar_context *ctx, const as_surface *s, const double *extra,
+                  int32_t nextra, const as_trimesh *m, const mc_limits *lim, mc_report *r);
+
+/* Fail the running cmocka test (naming what) when r holds a violation. */
+void mc_assert_ok(const mc_report *r, const char *what);
+
+#endif /* ANISTAR_MESH_CHECK_H */

@@ -337,6 +337,44 @@ static void test_random_cube(void **state) {
     fx_close(&f);
 }
 
+/* as_del3_shrink: capacity down to the counts, and the structure goes on exactly as one
+ * never shrunk (same arrays after more insertions), with and without the sphere cache. */
+static void test_shrink(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {21};
+    double *p = pts_sphere(&r, 600);
+    for (int nosph = 0; nosph < 2; nosph++) {
+        as_del3 a, b;
+        as_del3_init(&a, f.ctx);
+        as_del3_init(&b, f.ctx);
+        a.no_sphere_cache = b.no_sphere_cache = nosph;
+        for (int i = 0; i < 600; i++) {
+            int32_t va, vb;
+            assert_int_equal(as_del3_insert(&a, p + 3 * i, i, &va), ANISTAR_OK);
+            assert_int_equal(as_del3_insert(&b, p + 3 * i, i, &vb), ANISTAR_OK);
+            if (i == 299) {
+                assert_true(a.cap_t > (size_t)a.nt || a.cap_v > (size_t)a.nv);
+                assert_int_equal(as_del3_shrink(&a), 0);
+                assert_int_equal(a.cap_t, (size_t)a.nt);
+                assert_int_equal(a.cap_v, (size_t)a.nv);
+                check_all(&a);
+            }
+        }
+        check_all(&a);
+        assert_int_equal(a.nt, b.nt);
+        assert_int_equal(a.nv, b.nv);
+        assert_memory_equal(a.tet_v, b.tet_v, 4 * (size_t)a.nt * sizeof *a.tet_v);
+        assert_memory_equal(a.tet_adj, b.tet_adj, 4 * (size_t)a.nt * sizeof *a.tet_adj);
+        assert_int_equal(a.sph == NULL, nosph);
+        as_del3_destroy(&a);
+        as_del3_destroy(&b);
+    }
+    free(p);
+    fx_close(&f);
+}
+
 static void test_sphere_torus(void **state) {
     (void)state;
     fixture f;
@@ -1377,6 +1415,7 @@ int main(void) {
         cmocka_unit_test(test_hilbert),
         cmocka_unit_test(test_sort),
         cmocka_unit_test(test_random_cube),
+        cmocka_unit_test(test_shrink),
         cmocka_unit_test(test_sphere_torus),
         cmocka_unit_test(test_grid),
         cmocka_unit_test(test_cospherical),

@@ -283,9 +283,9 @@ enum { VBYTES = 3 * sizeof(double) + sizeof(int64_t) + 2 * sizeof(int32_t) };
  * (vloc[-1], the infinite vertex). */
 static size_t vblock_bytes(size_t cap) { return cap * VBYTES + sizeof(int32_t); }
 
-static int grow_vertices(as_del3 *d, size_t need) {
-    if (need <= d->cap_v) return 0;
-    size_t cap = grown_cap(d->cap_v, need), bytes;
+/* Reallocate the vertex arrays to capacity cap >= nv. 0 or -1 (nothing changed). */
+static int set_vertex_cap(as_del3 *d, size_t cap) {
+    size_t bytes;
     if (cap > SIZE_MAX / VBYTES - 1) return -1;
     bytes = vblock_bytes(cap);
     char *blk = as_alloc(d->ctx, bytes);
@@ -312,6 +312,11 @@ static int grow_vertices(as_del3 *d, size_t need) {
     return 0;
 }
 
+static int grow_vertices(as_del3 *d, size_t need) {
+    if (need <= d->cap_v) return 0;
+    return set_vertex_cap(d, grown_cap(d->cap_v, need));
+}
+
 /* Store point p with global id g as vertex v (capacity reserved). */
 static inline void store_vertex(as_del3 *d, int32_t v, const double *p, int64_t g) {
     double *x = d->xyz + 3 * (size_t)v;
@@ -333,16 +338,14 @@ static size_t sph_bytes(const as_del3 *d) {
     return d->sph ? AS_DEL3_SPH * sizeof(double) * d->cap_t : 0;
 }
 
-static int grow_tets(as_del3 *d, size_t need) {
-    if (need <= d->cap_t) return 0;
-    if (need > MAX_TETS) return -1;
-    size_t cap = grown_cap(d->cap_t, need), bytes;
-    if (cap > MAX_TETS) cap = MAX_TETS;
+/* Reallocate the tet arrays to capacity cap >= nt. 0 or -1 (nothing changed). */
+static int set_tet_cap(as_del3 *d, size_t cap) {
+    size_t bytes;
     if (as_mul_size(cap, TBYTES, &bytes)) return -1;
     int32_t *blk = as_alloc(d->ctx, bytes);
     if (!blk) return -1;
     double *sph = NULL;
-    if (cap <= SPH_MAX_TETS) {
+    if (cap <= SPH_MAX_TETS && !d->no_sphere_cache) {
         sph = as_alloc_array(d->ctx, cap, AS_DEL3_SPH * sizeof *sph);
         if (!sph) {
             as_free(d->ctx, blk, bytes);
@@ -363,6 +366,21 @@ static int grow_tets(as_del3 *d, size_t need) {
     d->next = blk + 8 * cap;
     d->sph = sph;
     d->cap_t = cap;
+    return 0;
+}
+
+static int grow_tets(as_del3 *d, size_t need) {
+    if (need <= d->cap_t) return 0;
+    if (need > MAX_TETS) return -1;
+    size_t cap = grown_cap(d->cap_t, need);
+    if (cap > MAX_TETS) cap = MAX_TETS;
+    return set_tet_cap(d, cap);
+}
+
+int as_del3_shrink(as_del3 *d) {
+    size_t ct = d->nt > 0 ? (size_t)d->nt : 1, cv = d->nv > 0 ? (size_t)d->nv : 1;
+    if (ct < d->cap_t && set_tet_cap(d, ct)) return -1;
+    if (cv < d->cap_v && set_vertex_cap(d, cv)) return -1;
     return 0;
 }
 

@@ -123,6 +123,9 @@ typedef struct as_del3 {
                     bound; see del3.c), computed at the tet's first insphere test;
                     sph[AS_DEL3_SPH t + 4] < 0 until then. NULL (no cache) once cap_t
                     exceeded 2^14 (until destroyed): big triangulations test directly */
+    int no_sphere_cache; /* set by the owner before the first insertion: never cache the
+                            spheres (the mesher's stars: 48 bytes per tet saved, their
+                            conflict tests have their own filter) */
     int32_t free_head; /* first free slot or -1 */
 
     int dim3;        /* 1 once the points span 3D (tets exist) */
@@ -212,6 +215,11 @@ int as_del3_insert_frame(as_del3 *d, const as_metric_frame *mf, const double q[3
 anistar_status as_del3_insert_points(as_del3 *d, const double *pts, const int64_t *gids,
                                      int32_t n, const as_metric_frame *mf, int32_t *vertex,
                                      int32_t *ndup);
+
+/* Release the capacity beyond the current tet slots and vertices (for a triangulation
+ * kept a long time, like a mesher star; the next insertions grow it again). Returns 0, or
+ * -1 when out of memory (nothing changed). */
+int as_del3_shrink(as_del3 *d);
 
 /* ---- queries that do not modify -------------------------------------------------------- */
 

@@ -24,6 +24,7 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
 void as_star_init(as_star *st, anistar_context *ctx) {
     memset(st, 0, sizeof *st);
     as_del3_init(&st->del, ctx);
+    st->del.no_sphere_cache = 1; /* design: isph filters its conflict tests (memory) */
     st->gid = -1;
     st->vloc = -1;
 }
@@ -85,6 +86,36 @@ double as_radius_edge(const as_metric_frame *mf, const double a[3], const double
     double m = lu < lv ? lu : lv;
     if (le < m) m = le;
     return m > 0 ? R / m : INFINITY;
+}
+
+/* Shrink array *p of capacity *cap (elements of size elem) to n >= 1 elements. 0 or -1. */
+static int trim_array(anistar_context *ctx, void **p, int32_t *cap, int32_t n, size_t elem) {
+    if (n < 1) n = 1;
+    if (n >= *cap) return 0;
+    void *q = as_realloc(ctx, *p, (size_t)*cap * elem, (size_t)n * elem);
+    if (!q) return -1;
+    *p = q;
+    *cap = n;
+    return 0;
+}
+
+anistar_status as_star_trim(anistar_context *ctx, as_star *st) {
+    if (as_del3_shrink(&st->del) != 0)
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    size_t need = st->del.nt > 0 ? (size_t)st->del.nt : 1;
+    if (need < st->cap_tflag) {
+        uint8_t *p = as_realloc(ctx, st->tflag, st->cap_tflag, need);
+        if (!p) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star flags)");
+        st->tflag = p;
+        st->cap_tflag = need;
+    }
+    if (trim_array(ctx, (void **)&st->rf, &st->cap_rf, st->nrf, sizeof *st->rf) ||
+        trim_array(ctx, (void **)&st->itet, &st->cap_itet, st->nitet, sizeof *st->itet) ||
+        trim_array(ctx, (void **)&st->isph, &st->cap_isph, 4 * st->nitet, sizeof *st->isph) ||
+        trim_array(ctx, (void **)&st->zone, &st->cap_zone, st->closed ? 4 * st->nrf : 0,
+                   sizeof *st->zone))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    return ANISTAR_OK;
 }
 
 static anistar_status grow_tflag(anistar_context *ctx, as_star *st) {
@@ -553,6 +584,7 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
     /* design: free the arrays (capacity shrinks to the new size), reserve tightly */
     as_del3_destroy(&st->del);
     as_del3_init(&st->del, ctx);
+    st->del.no_sphere_cache = 1;
     as_free(ctx, st->tflag, st->cap_tflag);
     st->tflag = NULL;
     st->cap_tflag = 0;

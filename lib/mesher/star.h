@@ -133,6 +133,11 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
  * factor, AND require the exact conflict with a tet incident to v (necessary for any
  * change of S_v); inserting a superset of the needed sites into T'_v is harmless.
  */
+/* Release the star's spare capacity (del3 arrays, tet flags): a star is kept for the
+ * whole run, after a build most of its doubling growth is unused. ANISTAR_OK or ENOMEM
+ * (the star unchanged). */
+anistar_status as_star_trim(anistar_context *ctx, as_star *st);
+
 #define AS_STAR_ZONE_INFLATE 1.5
 
 /*

@@ -698,6 +698,7 @@ static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) 
     uint32_t ep = next_epoch(ss);
     for (int32_t k = 0; k < st->del.nv; k++) ss->stamp[st->del.gid[k]] = ep;
     if ((s = grow_star_box(ss, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
+    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
     ss->zone_regrowths++;
     for (int32_t k = 0; k < st->nrf; k++)
         st->rf[k].fresh = find_keep(ss->keep, nkeep, st->rf[k].g) < 0;
@@ -729,6 +730,7 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
         ANISTAR_OK)
         return s;
     if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
+    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
     st->nv_base = st->del.nv;
     ss->star_rebuilds++;
     /* the queue flags of facets that survived stay valid: copy them over; the others are
@@ -792,6 +794,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     }
     /* 2. p's star */
     if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 2)) != ANISTAR_OK) return s;
+    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;

@@ -133,7 +133,7 @@ check-run: all tests
 
 SAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 sanitize: check-deps
-	@$(MAKE) --no-print-directory BUILD=build/asan CFLAGS="-O1 -g" \
+	@$(MAKE) --no-print-directory BUILD=build/asan CFLAGS="-O2 -g" \
 	    VARIANT_CFLAGS="$(SAN_FLAGS)" VARIANT_LDFLAGS="$(SAN_FLAGS)" all tests
 	@ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	    sh test/run.sh build/asan

@@ -577,6 +577,8 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++)
         fprintf(f, "%s%llu", i ? ", " : "", (unsigned long long)st->histogram[i]);
     fprintf(f, "],\n  \"rho2_mean\": %.17g,\n", st->rho2_mean);
+    fprintf(f, "  \"approx_error\": {\"mean\": %.17g, \"max\": %.17g},\n",
+            st->approx_error_mean, st->approx_error_max);
     /* vertex optimisation (paper 6.2): counters and the histogram before it */
     fprintf(f, "  \"optimize\": {\"done\": %s, \"moved\": %llu, \"tries\": %llu, "
                "\"passes\": %llu, \"seconds\": %.6g, \"rho2_mean_before\": %.17g,\n"

@@ -271,6 +271,10 @@ typedef struct anistar_mesh_stats {
     uint64_t pick_valid_failures; /* Pick_valid calls that fell back to the center */
     double seconds_total, seconds_init, seconds_refine, seconds_output;
     double rho2_mean;             /* mean of the 3 F squared radius-edge ratios above */
+    double approx_error_mean;     /* distance from the facets to S: samples at 4 fixed
+                                     barycentric points of each facet projected on S,
+                                     mean weighted by area (so over area-uniform points) */
+    double approx_error_max;      /* ... and the largest of those distances */
     /* vertex optimisation (paper 6.2; ANISTAR_PARAM_OPTIMIZE = 1 and a complete run,
      * else all zero): optimized is 1 when it ran; histogram_before and rho2_mean_before
      * describe the mesh before it (histogram, rho2_mean: after) */

@@ -141,6 +141,12 @@ static void test_mesh_sphere(void **state) {
     assert_true(rho > 0.5 && rho <= 3.0 + 1e-9); /* rho0 defaults to 3 */
     assert_true(rmax > 0 && rmax <= 0.3 + 1e-9);
     assert_true(fabs(json_number(js, "gamma_max") - 1) < 1e-9);
+    /* facets inscribed in the unit sphere with circumradius <= r_max <= 0.3 are within
+     * 1 - sqrt(1 - 0.3^2) of it */
+    const char *ae = json_value(js, "approx_error");
+    assert_non_null(ae);
+    double emean = json_number(ae, "mean"), emax = json_number(ae, "max");
+    assert_true(emean > 0 && emean <= emax && emax <= 1 - sqrt(1 - 0.09) + 1e-12);
     assert_non_null(json_value(js, "parameters"));
     assert_true(json_number(js, "r0") == 0.3);
     assert_true(json_number(js, "seed") == 7);

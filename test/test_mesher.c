@@ -172,6 +172,80 @@ static void assert_same(const job *a, const job *b) {
     assert_memory_equal(a->tri, b->tri, 3 * a->nt * sizeof *a->tri);
 }
 
+/* The approximation error statistic on the unit sphere, where the distance from p to S is
+ * 1 - |p| exactly: the area-weighted mean over the 4 barycentric samples recomputed here,
+ * and the bound 1 - sqrt(1 - R^2) for a triangle with circumradius R inscribed in S. */
+static void test_approx_error_sphere(void **state) {
+    (void)state;
+    job j = {"sphere", "euclidean", 0.3, 1.5, 3, 0, 0, NULL, NULL, 0};
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    anistar_metric *m;
+    anistar_mesher *me;
+    anistar_mesh *mesh = NULL;
+    assert_int_equal(anistar_surface_builtin(ctx, j.surface, &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, j.metric, &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    anistar_mesher_set(me, ANISTAR_PARAM_R0, j.r0);
+    anistar_mesher_set(me, ANISTAR_PARAM_GAMMA0, j.gamma0);
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+    size_t nv = anistar_mesh_vertex_count(mesh), nt = anistar_mesh_triangle_count(mesh);
+    double *xyz = malloc(3 * nv * sizeof *xyz);
+    int32_t *tri = malloc(3 * nt * sizeof *tri);
+    anistar_mesh_get_vertices(mesh, xyz);
+    anistar_mesh_get_triangles(mesh, tri);
+    anistar_mesh_stats S;
+    anistar_mesh_get_stats(mesh, &S);
+    static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                    {2.0 / 3, 1.0 / 6, 1.0 / 6},
+                                    {1.0 / 6, 2.0 / 3, 1.0 / 6},
+                                    {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+    double esum = 0, asum = 0, emax = 0, bound = 0;
+    for (size_t t = 0; t < nt; t++) {
+        const double *a = xyz + 3 * tri[3 * t], *b = xyz + 3 * tri[3 * t + 1],
+                     *c = xyz + 3 * tri[3 * t + 2];
+        double u[3], v[3], w[3], n[3];
+        for (int k = 0; k < 3; k++) {
+            u[k] = b[k] - a[k];
+            v[k] = c[k] - a[k];
+            w[k] = c[k] - b[k];
+        }
+        n[0] = u[1] * v[2] - u[2] * v[1];
+        n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+        double area2 = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        double R = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) *
+                   sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) *
+                   sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / (2 * area2);
+        double bt = 1 - sqrt(1 - R * R);
+        if (bt > bound) bound = bt;
+        double e4 = 0;
+        for (int q = 0; q < 4; q++) {
+            double p[3];
+            for (int k = 0; k < 3; k++) p[k] = bw[q][0] * a[k] + bw[q][1] * b[k] + bw[q][2] * c[k];
+            double e = 1 - sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            assert_true(e >= 0 && e <= bt * (1 + 1e-9) + 1e-15);
+            if (e > emax) emax = e;
+            e4 += e;
+        }
+        esum += 0.5 * area2 * e4 / 4;
+        asum += 0.5 * area2;
+    }
+    double mean = esum / asum;
+    assert_true(S.approx_error_mean > 0);
+    assert_true(S.approx_error_mean <= S.approx_error_max);
+    assert_true(fabs(S.approx_error_mean - mean) <= 1e-9 * mean);
+    assert_true(fabs(S.approx_error_max - emax) <= 1e-9 * emax);
+    assert_true(S.approx_error_max <= bound * (1 + 1e-9));
+    free(xyz);
+    free(tri);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 static void test_determinism_and_threads(void **state) {
     (void)state;
     job a1 = {"sphere", "shock,phi=0.3", 1.0, 2.0, 7, 0, 0, NULL, NULL, 0};
@@ -381,6 +455,7 @@ int main(void) {
         cmocka_unit_test(test_torus_curvature),
         cmocka_unit_test(test_chair_curvature),
         cmocka_unit_test(test_max_vertices_incomplete),
+        cmocka_unit_test(test_approx_error_sphere),
         cmocka_unit_test(test_determinism_and_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -24,7 +24,9 @@ void as_mesh_free(anistar_mesh *m) {
  *  3. orientation: (b - a) x (c - a) along the outward normal at the facet's surface
  *     center in the star of its smallest vertex;
  *  4. statistics: radius-edge ratios in the three vertex metrics (histogram of squares),
- *     r_max over the three stars' surface balls, gamma_max, topology by as_topology_check.
+ *     r_max over the three stars' surface balls, gamma_max, topology by as_topology_check,
+ *     the approximation error (DESIGN.md 4.8): distance to S of 4 barycentric samples per
+ *     facet (projected with the oracle), mean weighted by area and max.
  */
 anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                                 const as_mesher_counters *cnt, int complete, anistar_mesh **out) {
@@ -68,7 +70,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
         if (map[i] >= 0) memcpy(m->tm.tensor + 6 * (size_t)map[i], ss->mf[i].m, 6 * sizeof(double));
 
     S->histogram_width = 0.25;
-    double rho2_sum = 0;
+    double rho2_sum = 0, err_sum = 0, area_sum = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         const as_star *st = ss->stars[v];
         for (int32_t k = 0; k < st->nrf; k++) {
@@ -104,6 +106,33 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                 int32_t idx = as_star_find(sw, f->g);
                 if (idx >= 0 && sw->rf[idx].r > S->r_max) S->r_max = sw->rf[idx].r;
             }
+            /* approximation error: 4 fixed barycentric samples projected on S, weighted by
+             * the triangle's area (the mean over area-uniform samples) */
+            {
+                static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                                {2.0 / 3, 1.0 / 6, 1.0 / 6},
+                                                {1.0 / 6, 2.0 / 3, 1.0 / 6},
+                                                {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+                double area = 0.5 * sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]), esum = 0;
+                int ns = 0;
+                for (int q = 0; q < 4; q++) {
+                    double p[3], pr[3];
+                    for (int k = 0; k < 3; k++)
+                        p[k] = (bw[q][0] * a[k] + bw[q][1] * b[k]) + bw[q][2] * c[k];
+                    s = as_surface_project(ctx, ss->surf, p, pr);
+                    if (s == ANISTAR_ENOSURFACE) continue; /* no projection found: skipped */
+                    if (s != ANISTAR_OK) goto fail;
+                    double d[3] = {pr[0] - p[0], pr[1] - p[1], pr[2] - p[2]};
+                    double e = sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]);
+                    if (e > S->approx_error_max) S->approx_error_max = e;
+                    esum += e;
+                    ns++;
+                }
+                if (ns) {
+                    err_sum += area * esum / ns;
+                    area_sum += area;
+                }
+            }
             double g01 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[1]]);
             double g02 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[2]]);
             double g12 = as_metric_distortion(&ss->mf[f->g[1]], &ss->mf[f->g[2]]);
@@ -115,6 +144,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->vertices = m->tm.nv;
     S->facets = m->tm.nt;
     S->rho2_mean = m->tm.nt ? rho2_sum / (3.0 * (double)m->tm.nt) : 0;
+    S->approx_error_mean = area_sum > 0 ? err_sum / area_sum : 0;
     S->inconsistent_facets = ss->ninc;
     S->poles = (size_t)(ss->first_site - 8);
     S->complete = complete;

@@ -457,14 +457,12 @@ static uint32_t next_epoch(as_starset *ss) {
  * large zone at once would fill the star with sites its final zone does not hold (the
  * star's Delaunay work grows with them).
  */
-/* The first search radius (in M_v) for the candidates of an open star: three times its
- * largest restricted facet radius, or twice the distance to its nearest site; 0 when it
- * has neither (no limit). */
+/* The first search radius (in M_v) for the candidates of an open star: twice the distance
+ * from v to its nearest site in the star, or 3 times its largest restricted facet radius
+ * when it has no site yet; 0 when it has neither (no limit). A facet's radius can be far
+ * larger than the spacing around v (its dual edge may cross S far away), and the ball
+ * grows by doubling anyway. */
 static double open_radius(const as_starset *ss, const as_star *st, const as_metric_frame *mf) {
-    double r = 0;
-    for (int32_t i = 0; i < st->nrf; i++)
-        if (st->rf[i].r > r) r = st->rf[i].r;
-    if (r > 0) return 3 * r;
     const double *c = ss->xyz + 3 * (size_t)st->gid;
     double best = INFINITY;
     for (int32_t k = 0; k < st->del.nv; k++) {
@@ -473,7 +471,11 @@ static double open_radius(const as_starset *ss, const as_star *st, const as_metr
         double dd = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)g);
         if (dd < best) best = dd;
     }
-    return isfinite(best) ? 2 * best : 0;
+    if (isfinite(best) && best > 0) return 2 * best;
+    double r = 0;
+    for (int32_t i = 0; i < st->nrf; i++)
+        if (st->rf[i].r > r) r = st->rf[i].r;
+    return 3 * r;
 }
 
 /* The fresh facets of closed star st whose inflated surface ball is not inside the

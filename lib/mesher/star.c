@@ -131,6 +131,20 @@ static anistar_status grow_tflag(anistar_context *ctx, as_star *st) {
     return ANISTAR_OK;
 }
 
+/* The circumcenter of tet t (stretched frame): from the spheres of the tets incident to v
+ * when t is one of them (star_update computes those first: no circumcenter twice), else
+ * computed. 0, or -1 for an infinite tet. */
+static int tet_center(const as_star *st, int32_t t, double cc[3]) {
+    for (int32_t i = 0; i < st->nitet; i++)
+        if (st->itet[i] == t) {
+            const double *S = st->isph + 4 * (size_t)i;
+            if (S[3] == -1) return -1;
+            memcpy(cc, S, 3 * sizeof(double));
+            return 0;
+        }
+    return as_del3_circumcenter(&st->del, t, cc);
+}
+
 /* The inside state of live finite tet t (cached). */
 static anistar_status tet_inside(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                  int32_t t, int *in) {
@@ -140,7 +154,7 @@ static anistar_status tet_inside(const as_star_env *env, as_star *st, const as_m
         return ANISTAR_OK;
     }
     double cc[3], x[3];
-    if (as_del3_circumcenter(&st->del, t, cc) != 0)
+    if (tet_center(st, t, cc) != 0)
         return as_fail(env->ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
     as_metric_unapply(mf, cc, x);
     int side = 1;
@@ -317,6 +331,32 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     sc->nold = st->nrf;
     st->nrf = 0;
 
+    /* the tets incident to v */
+    if ((s = as_del3_vertex_tets(&st->del, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
+    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, (int32_t)sc->tets.n)) != ANISTAR_OK) return s;
+    memcpy(st->itet, sc->tets.a, sc->tets.n * sizeof *st->itet);
+    st->nitet = (int32_t)sc->tets.n;
+    /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
+     * center c* (R the true radius); with R' = |c - v| the computed radius,
+     * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
+     * the rounding of these few operations far below the 1e-9 margin) proves y strictly
+     * outside the true sphere: not in conflict, whatever the perturbation. */
+    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * st->nitet)) != ANISTAR_OK) return s;
+    {
+        const as_del3 *d = &st->del;
+        const double *V = as_del3_point(d, st->vloc);
+        for (int32_t i = 0; i < st->nitet; i++) {
+            double *S = st->isph + 4 * (size_t)i, dd[3];
+            if (as_del3_circumcenter(d, st->itet[i], S) != 0) {
+                S[0] = S[1] = S[2] = 0;
+                S[3] = -1;
+                continue;
+            }
+            sub3(S, V, dd);
+            double R = sqrt(dot3(dd, dd)) * (1 + 1e-9);
+            S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
+        }
+    }
     if ((s = as_del3_vertex_facets(&st->del, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
     const as_del3 *d = &st->del;
     const double *vx = env->xyz + 3 * (size_t)st->gid;
@@ -352,7 +392,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         /* design: dual segment between the two mapped circumcenters; the crossing nearest
          * the facet's own circumcenter (DESIGN.md 4.4). */
         double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
-        if (as_del3_circumcenter(d, t1, cc1) || as_del3_circumcenter(d, t2, cc2))
+        if (tet_center(st, t1, cc1) || tet_center(st, t2, cc2))
             return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
         as_metric_unapply(mf, cc1, a);
         as_metric_unapply(mf, cc2, b);
@@ -376,31 +416,6 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     }
     st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
 
-    /* the tets incident to v */
-    if ((s = as_del3_vertex_tets(&st->del, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
-    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, (int32_t)sc->tets.n)) != ANISTAR_OK) return s;
-    memcpy(st->itet, sc->tets.a, sc->tets.n * sizeof *st->itet);
-    st->nitet = (int32_t)sc->tets.n;
-    /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
-     * center c* (R the true radius); with R' = |c - v| the computed radius,
-     * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
-     * the rounding of these few operations far below the 1e-9 margin) proves y strictly
-     * outside the true sphere: not in conflict, whatever the perturbation. */
-    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * st->nitet)) != ANISTAR_OK) return s;
-    {
-        const double *V = as_del3_point(d, st->vloc);
-        for (int32_t i = 0; i < st->nitet; i++) {
-            double *S = st->isph + 4 * (size_t)i, dd[3];
-            if (as_del3_circumcenter(d, st->itet[i], S) != 0) {
-                S[0] = S[1] = S[2] = 0;
-                S[3] = -1;
-                continue;
-            }
-            sub3(S, V, dd);
-            double R = sqrt(dot3(dd, dd)) * (1 + 1e-9);
-            S[3] = isfinite(R) ? R * R : -1;
-        }
-    }
     /* box of the conflict zone */
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     if (st->closed) {
@@ -426,9 +441,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         }
     } else {
         const double *V = as_del3_point(d, st->vloc);
-        for (size_t k = 0; k < sc->tets.n; k++) {
-            double cc[3], x[3], h[3], dd[3];
-            if (as_del3_circumcenter(d, sc->tets.a[k], cc)) continue;
+        for (int32_t k = 0; k < st->nitet; k++) {
+            const double *cc = st->isph + 4 * (size_t)k;
+            double x[3], h[3], dd[3];
+            if (cc[3] == -1) continue; /* infinite */
             sub3(cc, V, dd);
             double R = sqrt(dot3(dd, dd));
             as_metric_unapply(mf, cc, x);

@@ -10,6 +10,7 @@
  * usage: bench_del3 [N (default 1000000)] [what: 0 all, 1 bulk only, 2 stars only]
  */
 #include "anistar.h"
+#include "bench_util.h"
 #include "core.h"
 #include "geom/del3.h"
 #include "geom/predicates.h"
@@ -18,27 +19,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-static double wall(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double cpu(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double unit(uint64_t *state) {
-    uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double wall(void) { return bench_wall_seconds(); }
+static double cpu(void) { return bench_cpu_seconds(); }
+static double unit(bench_rng *r) { return bench_unit(r); }
 
 static void pred_line(void) {
 #ifdef ANISTAR_BENCH
@@ -88,7 +72,7 @@ enum { NPATCH_SETS = 1000, NCORNER = 8 };
 /* A star's points: 8 corners of the box [-3,3]^3 (exact, or each coordinate pushed out
  * by a different few percent: "generic", no 4 coplanar, no 5 cospherical), then npatch
  * points on z = (x^2 - 2 y^2)/2 over [-0.1, 0.1]^2. */
-static void star_points(double *p, int npatch, int generic, uint64_t *rs) {
+static void star_points(double *p, int npatch, int generic, bench_rng *rs) {
     for (int c = 0; c < NCORNER; c++) {
         for (int k = 0; k < 3; k++) {
             double s = (c >> k) & 1 ? 3.0 : -3.0;
@@ -110,7 +94,7 @@ static int build(as_del3 *d, const double *q, int n) {
     return 0;
 }
 
-static int stars(anistar_context *ctx, int count, int npatch, int generic, uint64_t *rs) {
+static int stars(anistar_context *ctx, int count, int npatch, int generic, bench_rng *rs) {
     int n = NCORNER + npatch;
     double *sp = malloc((size_t)NPATCH_SETS * (size_t)n * 3 * sizeof *sp);
     if (!sp) return 1;
@@ -191,7 +175,7 @@ static int stars(anistar_context *ctx, int count, int npatch, int generic, uint6
 }
 
 int main(int argc, char **argv) {
-    uint64_t rstate = 0x1234567, *rs = &rstate;
+    bench_rng rstate = {0x1234567}, *rs = &rstate;
     int big = 1000000, only = 0;
     if (argc > 1) big = atoi(argv[1]);
     if (argc > 2) only = atoi(argv[2]);

@@ -5,33 +5,20 @@
  * accumulated (and printed) so that nothing is optimised away. One core, process CPU
  * time; never asserts on time. Usage: bench_expr [seconds per row, default 0.4]
  */
+#include "bench_util.h"
 #include "surface/expr.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
 
 #define NPTS 4096
 
-/* Process CPU time: the bench is single-threaded, and on a shared machine CPU time is
- * far less noisy than wall time. */
-static double now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 /* A fixed pseudo-random point cloud in [-lo, lo]^3 (SplitMix64). */
 static void make_points(double *pts, double lo) {
-    uint64_t s = 12345;
-    for (int i = 0; i < 3 * NPTS; i++) {
-        uint64_t z = (s += 0x9e3779b97f4a7c15ULL);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-        z ^= z >> 31;
-        pts[i] = lo * (2.0 * ((double)(z >> 11) * 0x1.0p-53) - 1.0);
-    }
+    bench_rng r = {12345};
+    for (int i = 0; i < 3 * NPTS; i++) pts[i] = lo * (2.0 * bench_unit(&r) - 1.0);
 }
 
 typedef struct row {
@@ -44,7 +31,7 @@ static row run(const as_expr *e, const double *pts, int mode, double secs) {
     row r = {0.0, 0.0};
     long n = 0;
     double acc = 0.0, g[3], h[6];
-    double t0 = now(), t1 = t0;
+    double t0 = bench_cpu_seconds(), t1 = t0;
     while (t1 - t0 < secs) {
         for (int rep = 0; rep < 16; rep++) {
             for (int i = 0; i < NPTS; i++) {
@@ -61,7 +48,7 @@ static row run(const as_expr *e, const double *pts, int mode, double secs) {
             }
             n += NPTS;
         }
-        t1 = now();
+        t1 = bench_cpu_seconds();
     }
     r.rate = (double)n / (t1 - t0);
     r.sink = acc;
@@ -110,7 +97,7 @@ int main(int argc, char **argv) {
     /* Compile speed: the torus source, repeatedly. */
     {
         long n = 0;
-        double t0 = now(), t1 = t0;
+        double t0 = bench_cpu_seconds(), t1 = t0;
         while (t1 - t0 < secs) {
             for (int i = 0; i < 256; i++) {
                 as_expr *e = NULL;
@@ -119,7 +106,7 @@ int main(int argc, char **argv) {
                 as_expr_free(ctx, e);
             }
             n += 256;
-            t1 = now();
+            t1 = bench_cpu_seconds();
         }
         printf("%-8s %-16s %14.0f %14s %8.1f\n", "torus", "compile", (double)n / (t1 - t0), "-",
                1e9 * (t1 - t0) / (double)n);

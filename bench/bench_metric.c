@@ -9,6 +9,7 @@
  * first with its frame turned a little and its axes rescaled by 1.5^t, t in [-1.2, 1.2],
  * so gamma clusters around 1.5, the default gamma0), half are independent random pairs.
  */
+#include "bench_util.h"
 #include "geom/linalg.h"
 #include "geom/metric.h"
 
@@ -17,25 +18,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-static double now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts); /* CPU time: robust on a shared machine */
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
-typedef struct rng {
-    uint64_t s;
-} rng;
-
-static double unit(rng *r) {
-    uint64_t z = (r->s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+typedef bench_rng rng;
+static double unit(rng *r) { return bench_unit(r); }
 
 static double gauss(rng *r) {
     double u = unit(r), v = unit(r);
@@ -89,14 +75,14 @@ int main(void) {
     /* Eigen-decompositions: random entries, and SPD metrics of anisotropy up to 10. */
     for (int i = 0; i < NPAIR; i++)
         for (int k = 0; k < 6; k++) sym[i][k] = 2 * unit(&r) - 1;
-    double t0 = now();
+    double t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps; rep++)
         for (int i = 0; i < NPAIR; i++) {
             double w[3], v[9];
             as_sym3_eigen(sym[i], w, v);
             sink += w[0] + v[4];
         }
-    double t1 = now();
+    double t1 = bench_cpu_seconds();
     print_row("as_sym3_eigen (random entries)", (double)reps * NPAIR, t1 - t0, "Jacobi");
 
     for (int i = 0; i < NPAIR; i++) {
@@ -105,33 +91,33 @@ int main(void) {
         for (int k = 0; k < 3; k++) w[k] = e[k] * e[k];
         as_sym3_from_eigen(w, u, sym[i]);
     }
-    t0 = now();
+    t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps; rep++)
         for (int i = 0; i < NPAIR; i++) {
             double w[3], v[9];
             as_sym3_eigen(sym[i], w, v);
             sink += w[0] + v[4];
         }
-    t1 = now();
+    t1 = bench_cpu_seconds();
     print_row("as_sym3_eigen (SPD, anisotropy <= 10)", (double)reps * NPAIR, t1 - t0, "");
 
-    t0 = now();
+    t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps; rep++)
         for (int i = 0; i < NPAIR; i++) {
             as_metric_frame_init(&fa[i], sym[i]);
             sink += fa[i].f[0];
         }
-    t1 = now();
+    t1 = bench_cpu_seconds();
     print_row("as_metric_frame_init", (double)reps * NPAIR, t1 - t0, "eigen + F + F^-1");
 
-    t0 = now();
+    t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps * 10; rep++)
         for (int i = 0; i < NPAIR; i++) {
             double y[3];
             as_metric_apply(&fa[i], sym[(i + rep) % NPAIR], y);
             sink += y[0];
         }
-    t1 = now();
+    t1 = bench_cpu_seconds();
     print_row("as_metric_apply", (double)reps * 10 * NPAIR, t1 - t0, "y = F x");
 
     /* The realistic distortion mix. */
@@ -152,22 +138,22 @@ int main(void) {
     }
     const double g0 = 1.5;
     long below = 0;
-    t0 = now();
+    t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps; rep++)
         for (int i = 0; i < NPAIR; i++) {
             double g = as_metric_distortion(&fa[i], &fb[i]);
             below += g <= g0;
             sink += g;
         }
-    t1 = now();
+    t1 = bench_cpu_seconds();
     print_row("as_metric_distortion", (double)reps * NPAIR, t1 - t0, "two eigen-solves");
     double t_exact = t1 - t0;
 
     long below2 = 0;
-    t0 = now();
+    t0 = bench_cpu_seconds();
     for (int rep = 0; rep < reps; rep++)
         for (int i = 0; i < NPAIR; i++) below2 += as_metric_distortion_le(&fa[i], &fb[i], g0);
-    t1 = now();
+    t1 = bench_cpu_seconds();
     print_row("as_metric_distortion_le (g = 1.5)", (double)reps * NPAIR, t1 - t0, "filter");
     double t_filter = t1 - t0;
 
@@ -218,13 +204,13 @@ int main(void) {
             b[i] = unit(&r);
         }
         int n = mi == 0 ? 20000 : 3000;
-        t0 = now();
+        t0 = bench_cpu_seconds();
         for (int k = 0; k < n; k++) {
             double x[15];
             as_lsq_solve(a, b, (size_t)m, 15, x, work);
             sink += x[k % 15];
         }
-        t1 = now();
+        t1 = bench_cpu_seconds();
         char what[64];
         snprintf(what, sizeof what, "as_lsq_solve (%d x 15)", m);
         print_row(what, n, t1 - t0, "pivoted Householder QR");

@@ -8,35 +8,18 @@
  * result feeds a checksum printed at the end (so no call can be optimised away), and each
  * timing is the best of several repetitions (the machine may be shared).
  */
+#include "bench_util.h"
 #include "geom/predicates.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 
 #define NCASE 1024
 
-typedef struct bench_rng {
-    uint64_t s;
-} bench_rng;
-
-static uint64_t rng_u64(bench_rng *r) {
-    uint64_t z = (r->s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-
 static double rng_range(bench_rng *r, double lo, double hi) {
-    return lo + (hi - lo) * ((double)(rng_u64(r) >> 11) * 0x1.0p-53);
-}
-
-static double now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts); /* CPU time: robust to a shared machine */
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+    return lo + (hi - lo) * bench_unit(r);
 }
 
 /* Five points per case. */
@@ -68,8 +51,8 @@ static void gen_near_degenerate(bench_rng *r) {
                 pts[i][3][k] = pts[i][0][k] + u * (pts[i][1][k] - pts[i][0][k]) +
                                w * (pts[i][2][k] - pts[i][0][k]);
         }
-        int j = (int)(rng_u64(r) % 5), k = (int)(rng_u64(r) % 3),
-            n = (int)(rng_u64(r) % 5) - 2;
+        int j = (int)(bench_u64(r) % 5), k = (int)(bench_u64(r) % 3),
+            n = (int)(bench_u64(r) % 5) - 2;
         for (; n > 0; n--) pts[i][j][k] = nextafter(pts[i][j][k], 2.0);
         for (; n < 0; n++) pts[i][j][k] = nextafter(pts[i][j][k], -2.0);
     }
@@ -86,13 +69,13 @@ static double time_o3d_reps(o3d_fn f, int rounds, int reps) {
     double best = 1e30;
     for (int rep = 0; rep < reps; rep++) {
         double acc = 0;
-        double t0 = now();
+        double t0 = bench_cpu_seconds();
         for (int r = 0; r < rounds; r++)
             for (int i = 0; i < NCASE; i++) {
                 double v = f(pts[i][0], pts[i][1], pts[i][2], pts[i][3]);
                 acc += (v > 0) - (v < 0);
             }
-        double t = now() - t0;
+        double t = bench_cpu_seconds() - t0;
         checksum += acc;
         if (t < best) best = t;
     }
@@ -103,13 +86,13 @@ static double time_isp_reps(isp_fn f, int rounds, int reps) {
     double best = 1e30;
     for (int rep = 0; rep < reps; rep++) {
         double acc = 0;
-        double t0 = now();
+        double t0 = bench_cpu_seconds();
         for (int r = 0; r < rounds; r++)
             for (int i = 0; i < NCASE; i++) {
                 double v = f(pts[i][0], pts[i][1], pts[i][2], pts[i][3], pts[i][4]);
                 acc += (v > 0) - (v < 0);
             }
-        double t = now() - t0;
+        double t = bench_cpu_seconds() - t0;
         checksum += acc;
         if (t < best) best = t;
     }
@@ -143,13 +126,13 @@ static double time_sos(int rounds) {
     double best = 1e30;
     for (int rep = 0; rep < 5; rep++) {
         double acc = 0;
-        double t0 = now();
+        double t0 = bench_cpu_seconds();
         for (int r = 0; r < rounds; r++)
             for (int i = 0; i < NCASE; i++)
                 acc +=
                     as_insphere_sos(pts[i][0], pts[i][1], pts[i][2], pts[i][3], pts[i][4],
                                     5 * i, 5 * i + 1, 5 * i + 2, 5 * i + 3, 5 * i + 4);
-        double t = now() - t0;
+        double t = bench_cpu_seconds() - t0;
         checksum += acc;
         if (t < best) best = t;
     }

@@ -11,11 +11,15 @@
 
 /* CPU seconds of this process. */
 double bench_cpu_seconds(void);
+/* Monotonic wall-clock seconds. */
+double bench_wall_seconds(void);
 
 typedef struct bench_rng {
     uint64_t s;
 } bench_rng;
-/* Uniform in [0, 1) with 53 random bits (SplitMix64). */
+/* 64 random bits (SplitMix64 of the state). */
+uint64_t bench_u64(bench_rng *r);
+/* Uniform in [0, 1) with 53 random bits (the top bits of bench_u64). */
 double bench_unit(bench_rng *r);
 
 /* Print "PROGRAM: WHAT failed: STATUS (message)" on stderr and exit 1. */

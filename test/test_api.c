@@ -214,6 +214,18 @@ static void test_install(void **state) {
     assert_int_equal(st, 0);
 }
 
+/* The API example of README.md compiles, runs and writes its mesh. */
+static void test_readme_api(void **state) {
+    (void)state;
+    static char out[1 << 14];
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "PROG_CFLAGS='%s' sh test/readme_check.sh %s 2>&1",
+             AS_TEST_ASAN ? "-fsanitize=address,undefined" : "", AS_TEST_BUILD_DIR);
+    int st = run(cmd, out, sizeof out);
+    if (st != 0) print_error("%s\n", out);
+    assert_int_equal(st, 0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_version),
@@ -226,6 +238,7 @@ int main(void) {
         cmocka_unit_test(test_exported_symbols),
         cmocka_unit_test(test_soname),
         cmocka_unit_test(test_install),
+        cmocka_unit_test(test_readme_api),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -23,56 +23,6 @@ static void run(const char *const *args, run_result *res) { tu_run(TOOL, args, r
 
 static void assert_one_line(const run_result *r) { tu_assert_one_line(r); }
 
-/* The whole file (NUL-terminated, to free), or NULL if it cannot be read. */
-static char *read_all(const char *path) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    size_t cap = 1 << 16, n = 0;
-    char *buf = malloc(cap);
-    assert_non_null(buf);
-    for (;;) {
-        if (n + 1 >= cap) {
-            cap *= 2;
-            buf = realloc(buf, cap);
-            assert_non_null(buf);
-        }
-        size_t r = fread(buf + n, 1, cap - 1 - n, f);
-        if (r == 0) break;
-        n += r;
-    }
-    buf[n] = '\0';
-    fclose(f);
-    return buf;
-}
-
-/* The value text after "key": in json (its first occurrence), or NULL. */
-static const char *json_value(const char *json, const char *key) {
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\":", key);
-    const char *p = strstr(json, pat);
-    if (!p) return NULL;
-    p += strlen(pat);
-    while (*p == ' ') p++;
-    return p;
-}
-
-static double json_number(const char *json, const char *key) {
-    const char *p = json_value(json, key);
-    if (!p) fail_msg("--stats lacks \"%s\"", key);
-    char *end;
-    double v = strtod(p, &end);
-    if (end == p) fail_msg("--stats \"%s\" is not a number", key);
-    return v;
-}
-
-static int json_bool(const char *json, const char *key) {
-    const char *p = json_value(json, key);
-    if (!p) fail_msg("--stats lacks \"%s\"", key);
-    if (!strncmp(p, "true", 4)) return 1;
-    if (!strncmp(p, "false", 5)) return 0;
-    fail_msg("--stats \"%s\" is not a boolean", key);
-    return -1;
-}
 
 /* The counts of an OFF file; checks every face is a triangle with indices in range and
  * that no two faces share the same sorted triple. Returns 0 or -1. */
@@ -120,41 +70,41 @@ static void test_mesh_sphere(void **state) {
     assert_true(nv >= 4);
     assert_int_equal(nf, 2 * nv - 4); /* a closed genus-0 triangle mesh */
 
-    char *js = read_all(json);
+    char *js = tu_read_file(json);
     assert_non_null(js);
-    assert_true(json_number(js, "vertices") == (double)nv);
-    assert_true(json_number(js, "facets") == (double)nf);
-    assert_true(json_number(js, "inconsistent_facets") == 0);
-    assert_true(json_number(js, "euler_characteristic") == 2);
-    assert_int_equal(json_bool(js, "closed_manifold"), 1);
-    assert_int_equal(json_bool(js, "complete"), 1);
-    double total = json_number(js, "total"), init = json_number(js, "init"),
-           refine = json_number(js, "refine"), output = json_number(js, "output");
+    assert_true(tu_json_number(js, "vertices") == (double)nv);
+    assert_true(tu_json_number(js, "facets") == (double)nf);
+    assert_true(tu_json_number(js, "inconsistent_facets") == 0);
+    assert_true(tu_json_number(js, "euler_characteristic") == 2);
+    assert_int_equal(tu_json_bool(js, "closed_manifold"), 1);
+    assert_int_equal(tu_json_bool(js, "complete"), 1);
+    double total = tu_json_number(js, "total"), init = tu_json_number(js, "init"),
+           refine = tu_json_number(js, "refine"), output = tu_json_number(js, "output");
     assert_true(total >= 0 && init >= 0 && refine >= 0 && output >= 0);
     assert_true(init + refine + output <= total * 1.01 + 1e-3);
-    double ins = json_number(js, "initial") + json_number(js, "rule1") +
-                 json_number(js, "rule2") + json_number(js, "rule3");
+    double ins = tu_json_number(js, "initial") + tu_json_number(js, "rule1") +
+                 tu_json_number(js, "rule2") + tu_json_number(js, "rule3");
     assert_true(ins >= (double)nv); /* every output vertex was inserted */
-    assert_true(json_number(js, "tries") >= json_number(js, "failures"));
+    assert_true(tu_json_number(js, "tries") >= tu_json_number(js, "failures"));
     /* the bounds hold on a finished mesh (euclidean: one metric, no distortion) */
-    double rho = json_number(js, "rho_max"), rmax = json_number(js, "r_max");
+    double rho = tu_json_number(js, "rho_max"), rmax = tu_json_number(js, "r_max");
     assert_true(rho > 0.5 && rho <= 3.0 + 1e-9); /* rho0 defaults to 3 */
     assert_true(rmax > 0 && rmax <= 0.3 + 1e-9);
-    assert_true(fabs(json_number(js, "gamma_max") - 1) < 1e-9);
+    assert_true(fabs(tu_json_number(js, "gamma_max") - 1) < 1e-9);
     /* facets inscribed in the unit sphere with circumradius <= r_max <= 0.3 are within
      * 1 - sqrt(1 - 0.3^2) of it */
-    const char *ae = json_value(js, "approx_error");
+    const char *ae = tu_json_value(js, "approx_error");
     assert_non_null(ae);
-    double emean = json_number(ae, "mean"), emax = json_number(ae, "max");
+    double emean = tu_json_number(ae, "mean"), emax = tu_json_number(ae, "max");
     assert_true(emean > 0 && emean <= emax && emax <= 1 - sqrt(1 - 0.09) + 1e-12);
-    assert_non_null(json_value(js, "parameters"));
-    assert_true(json_number(js, "r0") == 0.3);
-    assert_true(json_number(js, "seed") == 7);
+    assert_non_null(tu_json_value(js, "parameters"));
+    assert_true(tu_json_number(js, "r0") == 0.3);
+    assert_true(tu_json_number(js, "seed") == 7);
     assert_non_null(strstr(js, "\"euclidean\""));
     free(js);
 
     /* the .vtu and .sol describe the same mesh */
-    char *vt = read_all(vtu);
+    char *vt = tu_read_file(vtu);
     assert_non_null(vt);
     char want[64];
     snprintf(want, sizeof want, "NumberOfPoints=\"%ld\"", nv);
@@ -162,7 +112,7 @@ static void test_mesh_sphere(void **state) {
     snprintf(want, sizeof want, "NumberOfCells=\"%ld\"", nf);
     assert_non_null(strstr(vt, want));
     free(vt);
-    char *so = read_all(sol);
+    char *so = tu_read_file(sol);
     assert_non_null(so);
     const char *p = strstr(so, "SolAtVertices");
     assert_non_null(p);
@@ -185,16 +135,16 @@ static void test_mesh_limit(void **state) {
     assert_string_equal(r->err, ""); /* --quiet */
     long nv, nf;
     assert_int_equal(off_counts(off, &nv, &nf), 0);
-    char *js = read_all(json);
+    char *js = tu_read_file(json);
     assert_non_null(js);
-    assert_true(json_number(js, "vertices") == (double)nv);
-    assert_true(json_number(js, "facets") == (double)nf);
-    assert_int_equal(json_bool(js, "complete"), 0);
+    assert_true(tu_json_number(js, "vertices") == (double)nv);
+    assert_true(tu_json_number(js, "facets") == (double)nf);
+    assert_int_equal(tu_json_bool(js, "complete"), 0);
     /* stopped before the size rule was satisfied: some facet is still too large (or some
      * facets were left out as inconsistent) */
     assert_true(nv <= 40);
-    assert_true(json_number(js, "r_max") > 0.3 || json_number(js, "inconsistent_facets") > 0);
-    assert_true(json_number(js, "max_vertices") == 40);
+    assert_true(tu_json_number(js, "r_max") > 0.3 || tu_json_number(js, "inconsistent_facets") > 0);
+    assert_true(tu_json_number(js, "max_vertices") == 40);
     free(js);
     unlink(off), unlink(json);
     test_free(r);

@@ -14,57 +14,10 @@
 
 #define TOOL AS_TEST_BUILD_DIR "/anistar"
 
-static char *read_all(const char *path) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    size_t cap = 1 << 16, n = 0;
-    char *buf = malloc(cap);
-    assert_non_null(buf);
-    for (;;) {
-        if (n + 1 >= cap) {
-            cap *= 2;
-            buf = realloc(buf, cap);
-            assert_non_null(buf);
-        }
-        size_t r = fread(buf + n, 1, cap - 1 - n, f);
-        if (r == 0) break;
-        n += r;
-    }
-    buf[n] = '\0';
-    fclose(f);
-    return buf;
-}
-
-/* The text after "key": (first occurrence at or after from). */
-static const char *json_value(const char *from, const char *key) {
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\":", key);
-    const char *p = strstr(from, pat);
-    if (!p) fail_msg("--stats lacks \"%s\"", key);
-    p += strlen(pat);
-    while (*p == ' ') p++;
-    return p;
-}
-
-static double json_number(const char *from, const char *key) {
-    const char *p = json_value(from, key);
-    char *end;
-    double v = strtod(p, &end);
-    if (end == p) fail_msg("--stats \"%s\" is not a number", key);
-    return v;
-}
-
-static int json_bool(const char *from, const char *key) {
-    const char *p = json_value(from, key);
-    if (!strncmp(p, "true", 4)) return 1;
-    if (!strncmp(p, "false", 5)) return 0;
-    fail_msg("--stats \"%s\" is not a boolean", key);
-    return -1;
-}
-
 /* The array of ANISTAR_HISTOGRAM_BINS integers after "key": into h. */
 static void json_hist(const char *from, const char *key, unsigned long long *h) {
-    const char *p = json_value(from, key);
+    const char *p = tu_json_value(from, key);
+    assert_non_null(p);
     assert_true(*p == '[');
     p++;
     for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++) {
@@ -105,30 +58,34 @@ static void test_mesh_optimize(void **state) {
         if (res.status != 0) fprintf(stderr, "%s", res.err);
         assert_int_equal(res.status, 0);
         assert_int_equal(res.err[0], '\0'); /* --quiet */
-        js[r] = read_all(json[r]);
+        js[r] = tu_read_file(json[r]);
         assert_non_null(js[r]);
         off_counts(off[r], &nv[r], &nf[r]);
         assert_int_equal(nf[r], 2 * nv[r] - 4); /* a sphere */
-        assert_true(json_number(js[r], "vertices") == (double)nv[r]);
-        assert_true(json_number(js[r], "facets") == (double)nf[r]);
-        assert_true(json_bool(js[r], "closed_manifold"));
-        assert_true(json_number(js[r], "inconsistent_facets") == 0);
-        const char *par = json_value(js[r], "parameters");
-        assert_int_equal(json_bool(par, "optimize"), r);
-        const char *opt = json_value(js[r], "optimize");
-        assert_int_equal(json_bool(opt, "done"), r);
+        assert_true(tu_json_number(js[r], "vertices") == (double)nv[r]);
+        assert_true(tu_json_number(js[r], "facets") == (double)nf[r]);
+        assert_true(tu_json_bool(js[r], "closed_manifold"));
+        assert_true(tu_json_number(js[r], "inconsistent_facets") == 0);
+        const char *par = tu_json_value(js[r], "parameters");
+        assert_non_null(par);
+        assert_int_equal(tu_json_bool(par, "optimize"), r);
+        const char *opt = tu_json_value(js[r], "optimize");
+        assert_non_null(opt);
+        assert_int_equal(tu_json_bool(opt, "done"), r);
     }
     /* without: nothing moved; with: moves, fewer bad triangles on average */
-    const char *o0 = json_value(js[0], "optimize"), *o1 = json_value(js[1], "optimize");
-    assert_true(json_number(o0, "moved") == 0);
-    double moved = json_number(o1, "moved"), tries = json_number(o1, "tries");
+    const char *o0 = tu_json_value(js[0], "optimize"), *o1 = tu_json_value(js[1], "optimize");
+    assert_non_null(o0);
+    assert_non_null(o1);
+    assert_true(tu_json_number(o0, "moved") == 0);
+    double moved = tu_json_number(o1, "moved"), tries = tu_json_number(o1, "tries");
     assert_true(moved > 0 && tries >= moved);
-    assert_true(json_number(o1, "passes") >= 1);
+    assert_true(tu_json_number(o1, "passes") >= 1);
     assert_int_equal(nv[0], nv[1]);
-    double m0 = json_number(js[0], "rho2_mean"), m1 = json_number(js[1], "rho2_mean");
+    double m0 = tu_json_number(js[0], "rho2_mean"), m1 = tu_json_number(js[1], "rho2_mean");
     assert_true(m1 < m0);
     /* the "before" of the optimised run is the run without (same seed: same refinement) */
-    assert_true(json_number(o1, "rho2_mean_before") == m0);
+    assert_true(tu_json_number(o1, "rho2_mean_before") == m0);
     unsigned long long h0[ANISTAR_HISTOGRAM_BINS], hb[ANISTAR_HISTOGRAM_BINS],
         h1[ANISTAR_HISTOGRAM_BINS];
     json_hist(js[0], "histogram", h0);

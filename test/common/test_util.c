@@ -106,3 +106,52 @@ void tu_assert_one_line(const tu_run_result *r) {
           !strncmp(r->err, "anistar: ", 9)))
         fail_msg("stderr is not one 'anistar: ...' line: '%s'", r->err);
 }
+
+char *tu_read_file(const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 1 << 16, n = 0;
+    char *buf = malloc(cap);
+    assert_non_null(buf);
+    for (;;) {
+        if (n + 1 >= cap) {
+            cap *= 2;
+            buf = realloc(buf, cap);
+            assert_non_null(buf);
+        }
+        size_t r = fread(buf + n, 1, cap - 1 - n, f);
+        if (r == 0) break;
+        n += r;
+    }
+    buf[n] = '\0';
+    fclose(f);
+    return buf;
+}
+
+const char *tu_json_value(const char *json, const char *key) {
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = strstr(json, pat);
+    if (!p) return NULL;
+    p += strlen(pat);
+    while (*p == ' ') p++;
+    return p;
+}
+
+double tu_json_number(const char *json, const char *key) {
+    const char *p = tu_json_value(json, key);
+    if (!p) fail_msg("--stats lacks \"%s\"", key);
+    char *end;
+    double v = strtod(p, &end);
+    if (end == p) fail_msg("--stats \"%s\" is not a number", key);
+    return v;
+}
+
+int tu_json_bool(const char *json, const char *key) {
+    const char *p = tu_json_value(json, key);
+    if (!p) fail_msg("--stats lacks \"%s\"", key);
+    if (!strncmp(p, "true", 4)) return 1;
+    if (!strncmp(p, "false", 5)) return 0;
+    fail_msg("--stats \"%s\" is not a boolean", key);
+    return -1;
+}

@@ -15,37 +15,9 @@
 
 #ifndef AS_TEST_BUILD_DIR
 #define AS_TEST_BUILD_DIR "build"
-/* Running the command-line tool as a separate process (tests of examples/anistar.c). */
-typedef struct tu_run_result {
-    int status; /* exit code, or -1 if the program did not exit normally */
-    char out[16384];
-    char err[4096];
-} tu_run_result;
-
-/* Run program with args (NULL-terminated, without argv[0]; at most 62), capturing stdout
- * and stderr (truncated to the buffers). */
-void tu_run(const char *program, const char *const *args, tu_run_result *res);
-
-/* Fail unless stderr holds exactly one line starting with "anistar: ". */
-void tu_assert_one_line(const tu_run_result *r);
-
 #endif
 #ifndef AS_TEST_DATA_DIR
 #define AS_TEST_DATA_DIR "test/data"
-/* Running the command-line tool as a separate process (tests of examples/anistar.c). */
-typedef struct tu_run_result {
-    int status; /* exit code, or -1 if the program did not exit normally */
-    char out[16384];
-    char err[4096];
-} tu_run_result;
-
-/* Run program with args (NULL-terminated, without argv[0]; at most 62), capturing stdout
- * and stderr (truncated to the buffers). */
-void tu_run(const char *program, const char *const *args, tu_run_result *res);
-
-/* Fail unless stderr holds exactly one line starting with "anistar: ". */
-void tu_assert_one_line(const tu_run_result *r);
-
 #endif
 
 /* A counting allocator: fail_after < 0 never fails; otherwise the allocation number
@@ -84,5 +56,15 @@ void tu_run(const char *program, const char *const *args, tu_run_result *res);
 
 /* Fail unless stderr holds exactly one line starting with "anistar: ". */
 void tu_assert_one_line(const tu_run_result *r);
+
+/* The whole file (NUL-terminated, to free), or NULL if it cannot be read. */
+char *tu_read_file(const char *path);
+
+/* Reading the tool's --stats JSON: the value text after "key": (its first occurrence in
+ * json), or NULL; a number or a boolean there (the test fails when the key is missing or
+ * the value is not one). */
+const char *tu_json_value(const char *json, const char *key);
+double tu_json_number(const char *json, const char *key);
+int tu_json_bool(const char *json, const char *key);
 
 #endif

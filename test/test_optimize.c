@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mesh_check.h"
 #include "test_util.h"
 
 #include "geom/del3.h"
@@ -28,93 +29,6 @@
 #include "mesher/starmove.h"
 #include "surface/field.h"
 #include "surface/surface.h"
-
-static int cmp_tri(const void *a, const void *b) {
-    const int32_t *x = a, *y = b;
-    for (int k = 0; k < 3; k++)
-        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
-    return 0;
-}
-static void sort3(int32_t g[3]) {
-    for (int a = 0; a < 3; a++)
-        for (int b = a + 1; b < 3; b++)
-            if (g[b] < g[a]) {
-                int32_t t = g[a];
-                g[a] = g[b];
-                g[b] = t;
-            }
-}
-
-/*
- * The star of sampled output vertices, rebuilt from scratch in their metric from the
- * corners, poles and output vertices (as test_mesher.c does), must be exactly the output
- * triangles around them.
- */
-static void check_stars(anistar_context *ctx, const as_surface *s, const as_starset *ss,
-                        const anistar_mesh *mesh) {
-    size_t nv = mesh->tm.nv, nt = mesh->tm.nt;
-    int32_t npoles = ss->first_site - 8;
-    int32_t n = 8 + npoles + (int32_t)nv;
-    double *pts = malloc(3 * (size_t)n * sizeof *pts);
-    memcpy(pts, ss->xyz, 3 * (size_t)(8 + npoles) * sizeof *pts);
-    memcpy(pts + 3 * (size_t)(8 + npoles), mesh->tm.xyz, 3 * nv * sizeof *pts);
-    int32_t *tris = malloc(3 * nt * sizeof *tris);
-    for (size_t t = 0; t < nt; t++) {
-        for (int k = 0; k < 3; k++) tris[3 * t + k] = mesh->tm.tri[3 * t + k] + 8 + npoles;
-        sort3(tris + 3 * t);
-    }
-    qsort(tris, nt, 3 * sizeof *tris, cmp_tri);
-    int32_t *vx = malloc((size_t)n * sizeof *vx);
-    int32_t *found = malloc(3 * 256 * sizeof *found);
-    size_t stride = nv > 60 ? nv / 60 : 1;
-    for (size_t i = 0; i < nv; i += stride) {
-        as_metric_frame mf;
-        assert_int_equal(as_metric_frame_init(&mf, mesh->tm.tensor + 6 * i), 0);
-        as_del3 d;
-        as_del3_init(&d, ctx);
-        assert_int_equal(as_del3_insert_points(&d, pts, NULL, n, &mf, vx, NULL), ANISTAR_OK);
-        as_del3_buf faces = {0};
-        int32_t v = vx[8 + npoles + (int32_t)i];
-        assert_int_equal(as_del3_vertex_facets(&d, v, &faces), ANISTAR_OK);
-        size_t m = 0;
-        for (size_t k = 0; k < faces.n; k++) {
-            int32_t f = faces.a[k], tt[2] = {f >> 2, as_del3_mirror(&d, f) >> 2};
-            int in[2];
-            for (int q = 0; q < 2; q++) {
-                double cc[3], c[3];
-                assert_int_equal(as_del3_circumcenter(&d, tt[q], cc), 0);
-                as_metric_unapply(&mf, cc, c);
-                int side;
-                assert_int_equal(as_surface_side(ctx, s, c, &side), ANISTAR_OK);
-                in[q] = side < 0;
-            }
-            if (in[0] == in[1]) continue;
-            assert_true(m < 256);
-            int32_t *g = found + 3 * m++;
-            int q = 0;
-            for (int j = 0; j < 4; j++)
-                if (j != (f & 3)) g[q++] = (int32_t)d.gid[d.tet_v[4 * tt[0] + j]];
-            sort3(g);
-        }
-        qsort(found, m, 3 * sizeof *found, cmp_tri);
-        int32_t id = 8 + npoles + (int32_t)i;
-        size_t mo = 0;
-        for (size_t t = 0; t < nt; t++) {
-            const int32_t *g = tris + 3 * t;
-            if (g[0] != id && g[1] != id && g[2] != id) continue;
-            assert_true(mo < m);
-            assert_memory_equal(g, found + 3 * mo, 3 * sizeof *g);
-            mo++;
-        }
-        assert_int_equal(mo, m);
-        as_del3_buf_free(ctx, &faces);
-        as_del3_destroy(&d);
-    }
-    free(found);
-    free(vx);
-    free(tris);
-    free(pts);
-}
 
 /* Mean squared radius-edge ratio over every triangle and its three vertex metrics,
  * computed from the output alone; also checks rules 1-2 and the distortion bound. */
@@ -225,7 +139,14 @@ static void run_case(const ocase *c, double **xyz_out, int32_t **tri_out, size_t
         assert_int_equal(as_field_eval(ctx, f, x, m), ANISTAR_OK);
         assert_memory_equal(m, mesh->tm.tensor + 6 * i, sizeof m);
     }
-    check_stars(ctx, s, ss, mesh);
+    /* the shared output checks (test/common/mesh_check.c), the star of every vertex
+     * against an independent rebuild included */
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+    mc_report rep;
+    mc_report_init(&rep);
+    mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);
+    mc_assert_ok(&rep, c->surface);
+    assert_true(rep.stars_checked == nv);
     fprintf(stderr, "# %s / %s: V %zu, mean rho^2 %.4f -> %.4f, moved %llu, tries %llu, "
                     "passes %llu, refine %.3f s, optimize %.3f s\n",
             c->surface, c->metric, nv, mean0, mean1, (unsigned long long)S->optimize_moved,

@@ -293,6 +293,7 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->newinc, ss->cap_newinc * sizeof *ss->newinc);
     as_free(ctx, ss->list, ss->cap_list * sizeof *ss->list);
     as_free(ctx, ss->batch, ss->cap_batch * sizeof *ss->batch);
+    as_free(ctx, ss->bdist, ss->cap_bdist * sizeof *ss->bdist);
     as_free(ctx, ss->rebuild, ss->cap_rebuild * sizeof *ss->rebuild);
     as_free(ctx, ss->regrow, ss->cap_regrow * sizeof *ss->regrow);
     as_free(ctx, ss->regrow_box, ss->cap_regrow_box * 6 * sizeof *ss->regrow_box);
@@ -552,15 +553,23 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
             }
             if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
                 return s;
+            if (ss->ids.n > ss->cap_bdist &&
+                as_grow(ss->ctx, (void **)&ss->bdist, &ss->cap_bdist, ss->ids.n,
+                        sizeof *ss->bdist))
+                return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
             nc = 0;
             for (size_t k = 0; k < ss->ids.n; k++) {
                 int32_t q = ss->ids.ids[k];
                 if (ss->stamp[q] == ep) continue;
-                /* beyond the ball: left for a larger radius (not stamped) */
-                if (limited && !(as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q) <= rho)) continue;
+                double dq = -1; /* M_v distance to v, computed when first needed */
+                if (limited) {
+                    /* beyond the ball: left for a larger radius (not stamped) */
+                    dq = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q);
+                    if (!(dq <= rho)) continue;
+                }
                 if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nc, q)) != ANISTAR_OK)
                     return s;
-                nc++;
+                ss->bdist[nc++] = dq;
             }
         }
         query = !st->closed;
@@ -573,7 +582,10 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
                 ss->stamp[q] = ep;
                 continue;
             }
-            ss->batch[nb++] = q;
+            double dq = ss->bdist[k];
+            if (dq < 0) dq = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q);
+            ss->batch[nb] = q;
+            ss->bdist[nb++] = dq;
         }
         nc = nb;
         if (nc == 0) {
@@ -586,19 +598,18 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
         }
         size_t take = AS_STARSET_BATCH;
         if (nc > take) {
+            int32_t *b = ss->batch;
+            double *bd = ss->bdist;
             for (size_t i = 0; i < take; i++) {
                 size_t best = i;
-                double bd = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)ss->batch[i]);
-                for (size_t j = i + 1; j < nc; j++) {
-                    double dj = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)ss->batch[j]);
-                    if (dj < bd || (dj == bd && ss->batch[j] < ss->batch[best])) {
-                        bd = dj;
-                        best = j;
-                    }
-                }
-                int32_t t = ss->batch[i];
-                ss->batch[i] = ss->batch[best];
-                ss->batch[best] = t;
+                for (size_t j = i + 1; j < nc; j++)
+                    if (bd[j] < bd[best] || (bd[j] == bd[best] && b[j] < b[best])) best = j;
+                int32_t t = b[i];
+                b[i] = b[best];
+                b[best] = t;
+                double u = bd[i];
+                bd[i] = bd[best];
+                bd[best] = u;
             }
         } else {
             take = nc;
@@ -609,6 +620,7 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
             return s;
         /* the rest stays in the list, in order, for the next round */
         memmove(ss->batch, ss->batch + take, (nc - take) * sizeof *ss->batch);
+        memmove(ss->bdist, ss->bdist + take, (nc - take) * sizeof *ss->bdist);
         nc -= take;
     }
 }

@@ -77,6 +77,8 @@ typedef struct as_starset {
     int32_t *hints;          /* per changed star: a tet in conflict with p */
     size_t cap_hints;
     size_t cap_list, cap_batch;
+    double *bdist;           /* M_v distances of grow_star's candidates (batch), -1: not yet */
+    size_t cap_bdist;
     uint32_t *stamp;         /* per id: membership marks */
     uint32_t epoch;
     as_star *spare;          /* a star for simulations (Pick_valid) */

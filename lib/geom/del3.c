@@ -264,6 +264,34 @@ void as_del3_buf_free(anistar_context *ctx, as_del3_buf *b) {
     b->n = b->cap = 0;
 }
 
+static inline void swap_i32p(int32_t **a, int32_t **b) { int32_t *t = *a; *a = *b; *b = t; }
+static inline void swap_sz(size_t *a, size_t *b) { size_t t = *a; *a = *b; *b = t; }
+
+void as_del3_swap_scratch(as_del3 *a, as_del3 *b) {
+    swap_i32p(&a->stack, &b->stack);
+    swap_sz(&a->cap_stack, &b->cap_stack);
+    as_del3_bface *bf = a->bf;
+    a->bf = b->bf;
+    b->bf = bf;
+    swap_sz(&a->nbf, &b->nbf);
+    swap_sz(&a->cap_bf, &b->cap_bf);
+    as_del3_edge *et = a->etab;
+    a->etab = b->etab;
+    b->etab = et;
+    swap_sz(&a->cap_etab, &b->cap_etab);
+    swap_i32p(&a->etouch, &b->etouch);
+    swap_sz(&a->cap_etouch, &b->cap_etouch);
+    swap_i32p(&a->ltab, &b->ltab);
+    as_del3_buf t = a->removed;
+    a->removed = b->removed;
+    b->removed = t;
+    t = a->created;
+    a->created = b->created;
+    b->created = t;
+    swap_i32p(&a->phash, &b->phash);
+    swap_sz(&a->cap_phash, &b->cap_phash);
+}
+
 static int buf_reserve(anistar_context *ctx, as_del3_buf *b, size_t need) {
     void *p = b->a;
     if (as_grow(ctx, &p, &b->cap, need, sizeof *b->a)) return -1;

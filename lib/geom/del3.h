@@ -171,6 +171,12 @@ void as_del3_destroy(as_del3 *d);
  * size), restore the walk's random state: the same calls after a reset give the same
  * arrays. */
 void as_del3_reset(as_del3 *d);
+
+/* Swap the per-insertion scratch buffers (conflict stack, boundary faces, gluing tables,
+ * removed/created lists, point hash) of a and b; their triangulations stay put. Lets many
+ * small triangulations share one set of scratch buffers (the mesher's stars): a
+ * triangulation needs its scratch only during an operation. */
+void as_del3_swap_scratch(as_del3 *a, as_del3 *b);
 /* Set the seed of the walk's random face order (default 0); takes effect now and at
  * every reset. Results (the set of tets) never depend on it; tet numbering does. */
 void as_del3_set_seed(as_del3 *d, uint64_t seed);

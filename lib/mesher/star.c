@@ -463,44 +463,14 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
 }
 
 
-static inline void swap_i32p(int32_t **a, int32_t **b) { int32_t *t = *a; *a = *b; *b = t; }
-static inline void swap_sz(size_t *a, size_t *b) { size_t t = *a; *a = *b; *b = t; }
-
-/* Swap the insertion scratch of a and b (see as_star_scratch). The donor's arrays serve
- * every star in turn; a star keeps none between operations. */
-static void swap_scratch(as_del3 *a, as_del3 *b) {
-    swap_i32p(&a->stack, &b->stack);
-    swap_sz(&a->cap_stack, &b->cap_stack);
-    as_del3_bface *bf = a->bf;
-    a->bf = b->bf;
-    b->bf = bf;
-    swap_sz(&a->nbf, &b->nbf);
-    swap_sz(&a->cap_bf, &b->cap_bf);
-    as_del3_edge *et = a->etab;
-    a->etab = b->etab;
-    b->etab = et;
-    swap_sz(&a->cap_etab, &b->cap_etab);
-    swap_i32p(&a->etouch, &b->etouch);
-    swap_sz(&a->cap_etouch, &b->cap_etouch);
-    swap_i32p(&a->ltab, &b->ltab);
-    as_del3_buf t = a->removed;
-    a->removed = b->removed;
-    b->removed = t;
-    t = a->created;
-    a->created = b->created;
-    b->created = t;
-    swap_i32p(&a->phash, &b->phash);
-    swap_sz(&a->cap_phash, &b->cap_phash);
-}
-
 static void lend(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
     if (!sc->donor_init) {
         as_del3_init(&sc->donor, ctx);
         sc->donor_init = 1;
     }
-    swap_scratch(&st->del, &sc->donor);
+    as_del3_swap_scratch(&st->del, &sc->donor);
 }
-static void unlend(as_star *st, as_star_scratch *sc) { swap_scratch(&st->del, &sc->donor); }
+static void unlend(as_star *st, as_star_scratch *sc) { as_del3_swap_scratch(&st->del, &sc->donor); }
 
 /* Insert one site into the del3 of the star; marks the created tets. */
 static anistar_status star_add(const as_star_env *env, as_star *st, const as_metric_frame *mf,

@@ -2,9 +2,10 @@
  * bench_del3 — throughput of lib/geom/del3.c: bulk insertion with the spatial sort
  * (uniform points, torus surface points), star-sized triangulations from scratch (8 box
  * corners + 32 points of a small surface patch = 40 points, reused through
- * as_del3_reset), single insertions into a 40-point triangulation, conflict-zone queries;
- * with the work counters of del3 (walk steps, cavity sizes, tests through the cached
- * spheres and their exact fallbacks) and, in bench builds, the predicates' stage counters.
+ * as_del3_reset), without the sphere cache (the default, and the mesher's stars) and
+ * with it, single insertions into a 40-point triangulation, conflict-zone queries; with
+ * the work counters of del3 (walk steps, cavity sizes, conflict tests and their exact
+ * fallbacks) and, in bench builds, the predicates' stage counters.
  * Prints tables with CPU time (this process) and wall time; never asserts on time.
  *
  * usage: bench_del3 [N (default 1000000)] [what: 0 all, 1 bulk only, 2 stars only]
@@ -62,6 +63,13 @@ static int bulk(anistar_context *ctx, const char *name, const double *p, int n) 
     printf("| %-22s | %8d | %7.2f | %10.0f | %7.2f | %10.0f | %6.2f | %6.2f | %6.2f |\n", name,
            n, c1 - c0, n / (c1 - c0), w1 - w0, n / (w1 - w0), (double)nf / n,
            (double)d.stats.walk_steps / n, (double)d.stats.conflict_tets / n);
+    printf("    per point: %.1f conflict tests (%.2f%% left to the exact predicate), %.1f tets"
+           " created\n",
+           (double)d.stats.sphere_tests / n,
+           d.stats.sphere_tests
+               ? 100.0 * (double)d.stats.sphere_exact / (double)d.stats.sphere_tests
+               : 0.0,
+           (double)d.stats.created_tets / n);
     pred_line();
     as_del3_destroy(&d);
     return 0;
@@ -94,7 +102,8 @@ static int build(as_del3 *d, const double *q, int n) {
     return 0;
 }
 
-static int stars(anistar_context *ctx, int count, int npatch, int generic, bench_rng *rs) {
+static int stars(anistar_context *ctx, int count, int npatch, int generic, int cache,
+                 bench_rng *rs) {
     int n = NCORNER + npatch;
     double *sp = malloc((size_t)NPATCH_SETS * (size_t)n * 3 * sizeof *sp);
     if (!sp) return 1;
@@ -102,6 +111,7 @@ static int stars(anistar_context *ctx, int count, int npatch, int generic, bench
         star_points(sp + (size_t)s * (size_t)n * 3, npatch, generic, rs);
     as_del3 d;
     as_del3_init(&d, ctx);
+    d.sphere_cache = cache;
     pred_reset();
     uint64_t ins = 0, removed = 0, created = 0, walk = 0, stests = 0, sexact = 0;
     double w0 = wall(), c0 = cpu();
@@ -119,11 +129,11 @@ static int stars(anistar_context *ctx, int count, int npatch, int generic, bench
     }
     double w1 = wall(), c1 = cpu();
     char what[80];
-    snprintf(what, sizeof what, "from scratch: %s corners + %d", generic ? "generic" : "cube",
-             npatch);
-    printf("| %-40s | %7d | %8.2f | %8.2f |\n", what, count, 1e6 * (c1 - c0) / count,
+    snprintf(what, sizeof what, "from scratch: %s corners + %d%s", generic ? "generic" : "cube",
+             npatch, cache ? ", cache" : "");
+    printf("| %-42s | %7d | %8.2f | %8.2f |\n", what, count, 1e6 * (c1 - c0) / count,
            1e6 * (w1 - w0) / count);
-    printf("    per insertion: %.1f tets removed, %.1f created, %.2f walk steps, %.1f cached-sphere"
+    printf("    per insertion: %.1f tets removed, %.1f created, %.2f walk steps, %.1f conflict"
            " tests (%.2f%% left to the exact predicate); %d live tets\n",
            (double)removed / (double)ins, (double)created / (double)ins,
            (double)walk / (double)ins, (double)stests / (double)ins,
@@ -151,8 +161,10 @@ static int stars(anistar_context *ctx, int count, int npatch, int generic, bench
             tempty += b - a;
             tin += c - b;
         }
-        printf("| %-40s | %7d | %8s | %8.2f |\n", "one insertion into a 40-point star", count,
-               "-", 1e6 * (tin - tempty) / count);
+        printf("| %-42s | %7d | %8s | %8.2f |\n",
+               cache ? "one insertion into a 40-point star, cache"
+                     : "one insertion into a 40-point star",
+               count, "-", 1e6 * (tin - tempty) / count);
         /* conflict-zone queries: 64 different points against each of 1000 stars */
         as_del3_buf zone = {0};
         double tq = 0, wq = 0;
@@ -165,8 +177,10 @@ static int stars(anistar_context *ctx, int count, int npatch, int generic, bench
             wq += wall() - a;
             nq += 64;
         }
-        printf("| %-40s | %7d | %8.2f | %8.2f |\n", "conflict-zone query, 40-point star", nq,
-               1e6 * tq / nq, 1e6 * wq / nq);
+        printf("| %-42s | %7d | %8.2f | %8.2f |\n",
+               cache ? "conflict-zone query, 40-point star, cache"
+                     : "conflict-zone query, 40-point star",
+               nq, 1e6 * tq / nq, 1e6 * wq / nq);
         as_del3_buf_free(ctx, &zone);
     }
     as_del3_destroy(&d);
@@ -207,12 +221,13 @@ int main(int argc, char **argv) {
         printf("\n");
     }
     if (only != 1) {
-        printf("| %-40s | %7s | %8s | %8s |\n", "star-sized triangulations", "count", "cpu us",
+        printf("| %-42s | %7s | %8s | %8s |\n", "star-sized triangulations", "count", "cpu us",
                "wall us");
-        printf("|------------------------------------------|---------|----------|----------|\n");
-        rc |= stars(ctx, 100000, 32, 1, rs);
-        rc |= stars(ctx, 20000, 32, 0, rs);
-        rc |= stars(ctx, 20000, 40, 1, rs);
+        printf("|--------------------------------------------|---------|----------|----------|\n");
+        rc |= stars(ctx, 100000, 32, 1, 0, rs);
+        rc |= stars(ctx, 100000, 32, 1, 1, rs);
+        rc |= stars(ctx, 20000, 32, 0, 0, rs);
+        rc |= stars(ctx, 20000, 40, 1, 0, rs);
     }
     anistar_context_free(ctx);
     return rc;

@@ -128,7 +128,7 @@ static int64_t *canon(const as_del3 *d, size_t *count) {
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t)) continue;
         for (int i = 0; i < 4; i++) {
-            int32_t v = d->tet_v[4 * t + i];
+            int32_t v = as_del3_tet_vertex(d, t, i);
             q[4 * n + i] = v < 0 ? -1 : d->gid[v];
         }
         sort4(q + 4 * n);
@@ -170,7 +170,7 @@ static void check_finite_euler(const as_del3 *d) {
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
         int64_t v[4];
-        for (int i = 0; i < 4; i++) v[i] = d->tet_v[4 * t + i];
+        for (int i = 0; i < 4; i++) v[i] = as_del3_tet_vertex(d, t, i);
         sort4(v);
         for (int i = 0; i < 4; i++)
             for (int j = i + 1; j < 4; j++) edges[ne++] = v[i] * B + v[j];
@@ -197,10 +197,12 @@ static void check_all(as_del3 *d) {
     if (d->dim3) check_finite_euler(d);
 }
 
-/* Build from pts (n points, gid i) by bulk insertion and check. */
-static void build_check(fixture *f, as_del3 *d, const double *pts, int n,
-                        const as_metric_frame *mf) {
+/* Build from pts (n points, gid i) by bulk insertion and check; sphere_cache: ask for the
+ * cached spheres. */
+static void build_check_cache(fixture *f, as_del3 *d, const double *pts, int n,
+                              const as_metric_frame *mf, int sphere_cache) {
     as_del3_init(d, f->ctx);
+    d->sphere_cache = sphere_cache;
     int32_t *vx = malloc((size_t)n * sizeof *vx), ndup = -1;
     assert_non_null(vx);
     assert_int_equal(as_del3_insert_points(d, pts, NULL, n, mf, vx, &ndup), ANISTAR_OK);
@@ -212,6 +214,11 @@ static void build_check(fixture *f, as_del3 *d, const double *pts, int n,
     }
     free(vx);
     check_all(d);
+}
+
+static void build_check(fixture *f, as_del3 *d, const double *pts, int n,
+                        const as_metric_frame *mf) {
+    build_check_cache(f, d, pts, n, mf, 0);
 }
 
 /* ---- Hilbert and BRIO ---------------------------------------------------------------- */
@@ -243,9 +250,50 @@ static void check_curve(int B) {
     free(seen);
 }
 
+/* Reference: Skilling's transpose form of the Hilbert index (J. Skilling, "Programming the
+ * Hilbert curve", 2004), written with plain loops: undo the excess rotations level by level
+ * from the coarsest, Gray-encode across the axes, interleave (axis 0 first). sort.c runs a
+ * table-driven state machine; both must give the same index. */
+static uint64_t hilbert_reference(uint32_t x, uint32_t y, uint32_t z, int bits) {
+    uint32_t c[3] = {x, y, z};
+    for (uint32_t q = (uint32_t)1 << (bits - 1); q > 1; q >>= 1) {
+        uint32_t low = q - 1;
+        for (int i = 0; i < 3; i++) {
+            if (c[i] & q) {
+                c[0] ^= low; /* invert the lower bits of axis 0 */
+            } else {
+                uint32_t t = (c[0] ^ c[i]) & low; /* exchange them with axis i */
+                c[0] ^= t;
+                c[i] ^= t;
+            }
+        }
+    }
+    c[1] ^= c[0];
+    c[2] ^= c[1];
+    uint32_t g = 0;
+    for (uint32_t q = (uint32_t)1 << (bits - 1); q > 1; q >>= 1)
+        if (c[2] & q) g ^= q - 1;
+    for (int i = 0; i < 3; i++) c[i] ^= g;
+    uint64_t h = 0;
+    for (int l = bits - 1; l >= 0; l--)
+        for (int i = 0; i < 3; i++) h = h << 1 | ((c[i] >> l) & 1u);
+    return h;
+}
+
 static void test_hilbert(void **state) {
     (void)state;
     for (int B = 1; B <= 6; B++) check_curve(B);
+    /* the state machine of sort.c against the reference, every width */
+    tu_rng rr = {6};
+    for (int k = 0; k < 200000; k++) {
+        int bits = 1 + (int)(tu_rng_u64(&rr) % 21);
+        uint32_t m = ((uint32_t)1 << bits) - 1;
+        uint32_t x = (uint32_t)tu_rng_u64(&rr) & m, y = (uint32_t)tu_rng_u64(&rr) & m;
+        uint32_t z = (uint32_t)tu_rng_u64(&rr) & m;
+        uint64_t h = as_hilbert3_index(x, y, z, bits);
+        if (h != hilbert_reference(x, y, z, bits))
+            fail_msg("hilbert index of (%u, %u, %u) on %d bits", x, y, z, bits);
+    }
     /* The 21-bit curve used by the sort: face-adjacent cells stay close along the curve on
      * average (locality), and every index is in range. */
     tu_rng r = {5};
@@ -349,7 +397,7 @@ static void test_shrink(void **state) {
         as_del3 a, b;
         as_del3_init(&a, f.ctx);
         as_del3_init(&b, f.ctx);
-        a.no_sphere_cache = b.no_sphere_cache = nosph;
+        a.sphere_cache = b.sphere_cache = !nosph;
         for (int i = 0; i < 600; i++) {
             int32_t va, vb;
             assert_int_equal(as_del3_insert(&a, p + 3 * i, i, &va), ANISTAR_OK);
@@ -365,8 +413,7 @@ static void test_shrink(void **state) {
         check_all(&a);
         assert_int_equal(a.nt, b.nt);
         assert_int_equal(a.nv, b.nv);
-        assert_memory_equal(a.tet_v, b.tet_v, 4 * (size_t)a.nt * sizeof *a.tet_v);
-        assert_memory_equal(a.tet_adj, b.tet_adj, 4 * (size_t)a.nt * sizeof *a.tet_adj);
+        assert_memory_equal(a.tet, b.tet, 8 * (size_t)a.nt * sizeof *a.tet);
         assert_int_equal(a.sph == NULL, nosph);
         as_del3_destroy(&a);
         as_del3_destroy(&b);
@@ -414,7 +461,7 @@ static void test_grid(void **state) {
     double vol6 = 0;
     for (int32_t t = 0; t < d.nt; t++) {
         if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) continue;
-        const int32_t *v = d.tet_v + 4 * t;
+        const int32_t *v = as_del3_tet_vertices(&d, t);
         vol6 += as_orient3d(as_del3_point(&d, v[0]), as_del3_point(&d, v[1]),
                             as_del3_point(&d, v[2]), as_del3_point(&d, v[3]));
     }
@@ -495,7 +542,7 @@ static int sgn(double x) { return (x > 0) - (x < 0); }
 static void filter_vs_exact(as_del3 *d, tu_rng *r, long cnt[3]) {
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
-        const int32_t *tv = d->tet_v + 4 * (size_t)t;
+        const int32_t *tv = as_del3_tet_vertices(d, t);
         const double *a = as_del3_point(d, tv[0]), *b = as_del3_point(d, tv[1]);
         const double *c = as_del3_point(d, tv[2]), *e = as_del3_point(d, tv[3]);
         double ctr[3];
@@ -557,7 +604,8 @@ static void test_sphere_filter(void **state) {
             }
         }
         as_del3 d;
-        build_check(&f, &d, p, n, NULL);
+        build_check_cache(&f, &d, p, n, NULL, 1);
+        assert_non_null(d.sph);
         filter_vs_exact(&d, &r, cnt);
         /* the insertions' own statistics: the cache served them, with exact fallbacks */
         assert_true(d.stats.sphere_tests > 0);
@@ -568,7 +616,7 @@ static void test_sphere_filter(void **state) {
             double *cs = d.sph + AS_DEL3_SPH * (size_t)t;
             if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t) || cs[4] < 0) continue;
             double keep = cs[0];
-            cs[0] = keep * 2 + 1;
+            cs[0] = keep != 0 ? 3 * keep : 1.0; /* differs from keep */
             assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
             cs[0] = keep;
             break;
@@ -586,15 +634,80 @@ static void test_sphere_filter(void **state) {
     {
         double *q = pts_cube(&r, 4000);
         as_del3 d;
-        build_check(&f, &d, q, 4000, NULL);
+        build_check_cache(&f, &d, q, 4000, NULL, 1);
         assert_true(d.cap_t > ((size_t)1 << 14));
         assert_null(d.sph);
-        assert_int_equal(d.stats.sphere_tests, 0);
+        /* its tests went through the inline filter, which decided nearly all of them */
+        assert_true(d.stats.sphere_tests > 4000);
+        assert_true(d.stats.sphere_exact * 100 < d.stats.sphere_tests);
         as_del3_destroy(&d);
         free(q);
     }
     free(p);
     fx_close(&f);
+}
+
+/* The inline insphere filter of triangulations without the sphere cache (a cheap bound,
+ * then the bound of predicates.h's filter): on random, near-cospherical, exactly
+ * cospherical, tiny, huge and flat configurations it never contradicts the exact sign,
+ * never decides an exact zero, decides whatever predicates.h's stage-0 filter decides (its
+ * second stage is that filter's bound), and decides nearly all random tests. */
+static void test_insphere_filter(void **state) {
+    (void)state;
+    tu_rng r = {91};
+    long decided = 0, total = 0, zeros = 0, near = 0, near_undecided = 0;
+    for (int k = 0; k < 200000; k++) {
+        int kind = k % 5;
+        double sc = kind == 3 ? 1e-30 : kind == 4 ? 1e30 : 1.0;
+        double flat = kind == 4 ? 1e-6 : 1.0;
+        double q[5][3];
+        for (int i = 0; i < 5; i++)
+            for (int j = 0; j < 3; j++)
+                q[i][j] = sc * tu_rng_range(&r, -1, 1) * (j == 2 ? flat : 1);
+        if (kind == 1 || kind == 2) {
+            /* the query on the sphere through four points of a sphere centered at c (up
+             * to rounding: kind 1), or all five exactly on the integer sphere of radius
+             * 15 (kind 2: the determinant is exactly 0) */
+            static const int32_t on15[][3] = {{15, 0, 0}, {0, 15, 0}, {0, 0, 15}, {-15, 0, 0},
+                                              {0, -15, 0}, {0, 0, -15}, {9, 12, 0}, {12, 0, 9},
+                                              {0, 9, 12}, {-9, 12, 0}, {12, 0, -9}, {0, -9, 12},
+                                              {5, 10, 10}, {10, 5, 10}, {10, 10, 5}, {-5, 10, 10},
+                                              {2, 5, 14}, {14, 2, 5}, {5, 14, 2}, {-2, -5, 14}};
+            double c[3] = {tu_rng_range(&r, -3, 3), tu_rng_range(&r, -3, 3),
+                           tu_rng_range(&r, -3, 3)};
+            if (kind == 2) c[0] = c[1] = c[2] = (double)(tu_rng_u64(&r) % 7);
+            for (int i = 0; i < 5; i++) {
+                if (kind == 2) {
+                    const int32_t *w = on15[tu_rng_u64(&r) % 20];
+                    for (int j = 0; j < 3; j++) q[i][j] = c[j] + w[j];
+                } else {
+                    double g[3] = {gauss(&r), gauss(&r), gauss(&r)};
+                    double n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+                    for (int j = 0; j < 3; j++) q[i][j] = c[j] + 2.0 * g[j] / n;
+                }
+            }
+        }
+        int f = as_del3_insphere_filter(q[0], q[1], q[2], q[3], q[4]);
+        double ex = as_insphere_exact(q[0], q[1], q[2], q[3], q[4]);
+        int es = (ex > 0) - (ex < 0);
+        if (f != 0 && f != es) fail_msg("insphere filter %d, exact %d (kind %d)", f, es, kind);
+        if (es == 0) {
+            zeros++;
+            assert_int_equal(f, 0);
+        }
+        double s0 = as_insphere_filter(q[0], q[1], q[2], q[3], q[4]);
+        if (s0 != 0) assert_int_equal(f, (s0 > 0) - (s0 < 0));
+        if (kind == 1) {
+            near++;
+            near_undecided += f == 0;
+        } else if (kind != 2) {
+            total++;
+            decided += f != 0;
+        }
+    }
+    assert_true(zeros > 1000);                 /* the exact zeros were exercised */
+    assert_true(near_undecided > 0);           /* ... and the undecided band */
+    assert_true(decided * 1000 > total * 999); /* random tests: nearly all decided */
 }
 
 static void random_rotation(tu_rng *r, double q[9]) {
@@ -656,30 +769,35 @@ static void test_star_like(void **state) {
     fixture f;
     fx_open(&f, -1);
     tu_rng r = {4};
-    as_del3 d;
-    as_del3_init(&d, f.ctx);
-    for (int rep = 0; rep < 50; rep++) {
-        as_del3_reset(&d);
+    as_del3 d[2];
+    as_del3_init(&d[0], f.ctx);
+    as_del3_init(&d[1], f.ctx);
+    d[1].sphere_cache = 1;
+    for (int rep = 0; rep < 100; rep++) {
+        as_del3 *dd = &d[rep & 1]; /* without and with the sphere cache */
+        as_del3_reset(dd);
         for (int c = 0; c < 8; c++) {
             double q[3] = {c & 1 ? 3.0 : -3.0, c & 2 ? 3.0 : -3.0, c & 4 ? 3.0 : -3.0};
-            assert_int_equal(as_del3_insert(&d, q, c, NULL), ANISTAR_OK);
+            assert_int_equal(as_del3_insert(dd, q, c, NULL), ANISTAR_OK);
         }
-        assert_true(d.dim3);
+        assert_true(dd->dim3);
         for (int i = 0; i < 40; i++) {
             double x = tu_rng_range(&r, -0.1, 0.1), y = tu_rng_range(&r, -0.1, 0.1);
             double q[3] = {x, y, 0.5 * (x * x - 2 * y * y)};
             int32_t v;
-            assert_int_equal(as_del3_insert(&d, q, 8 + i, &v), ANISTAR_OK);
+            assert_int_equal(as_del3_insert(dd, q, 8 + i, &v), ANISTAR_OK);
             assert_int_equal(v, 8 + i);
             /* every created tet holds the new vertex */
-            for (size_t k = 0; k < d.created.n; k++) {
-                const int32_t *tv = d.tet_v + 4 * d.created.a[k];
+            for (size_t k = 0; k < dd->created.n; k++) {
+                const int32_t *tv = as_del3_tet_vertices(dd, dd->created.a[k]);
                 assert_true(tv[0] == v || tv[1] == v || tv[2] == v || tv[3] == v);
             }
         }
-        check_all(&d);
+        assert_true((dd->sph != NULL) == (rep & 1));
+        check_all(dd);
     }
-    as_del3_destroy(&d);
+    as_del3_destroy(&d[0]);
+    as_del3_destroy(&d[1]);
     fx_close(&f);
 }
 
@@ -801,7 +919,7 @@ static void brute_force(as_del3 *d) {
     as_del3_count(d, &nf, &ni);
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
-        const int32_t *v = d->tet_v + 4 * t;
+        const int32_t *v = as_del3_tet_vertices(d, t);
         for (int32_t w = 0; w < n; w++) {
             if (w == v[0] || w == v[1] || w == v[2] || w == v[3]) continue;
             int s = as_insphere_sos(as_del3_point(d, v[0]), as_del3_point(d, v[1]),
@@ -1002,7 +1120,7 @@ static void test_vertex_queries(void **state) {
         size_t cnt = 0;
         for (int32_t t = 0; t < d.nt; t++) {
             if (!as_del3_is_live(&d, t)) continue;
-            const int32_t *tv = d.tet_v + 4 * t;
+            const int32_t *tv = as_del3_tet_vertices(&d, t);
             cnt += tv[0] == v || tv[1] == v || tv[2] == v || tv[3] == v;
         }
         assert_int_equal(tets.n, cnt);
@@ -1015,7 +1133,7 @@ static void test_vertex_queries(void **state) {
             int m = 0, hasv = 0;
             for (int j = 0; j < 4; j++) {
                 if (j == i) continue;
-                int32_t w = d.tet_v[4 * t + j];
+                int32_t w = as_del3_tet_vertex(&d, t, j);
                 assert_true(w >= 0);
                 hasv |= w == v;
                 tri[m++] = w;
@@ -1033,7 +1151,7 @@ static void test_vertex_queries(void **state) {
         nk = 0;
         for (int32_t t = 0; t < d.nt; t++) {
             if (!as_del3_is_live(&d, t)) continue;
-            const int32_t *tv = d.tet_v + 4 * t;
+            const int32_t *tv = as_del3_tet_vertices(&d, t);
             for (int i = 0; i < 4; i++) {
                 int64_t tri[4];
                 int m = 0, ok = 0, fin = 1;
@@ -1168,7 +1286,7 @@ static void test_circumcenter(void **state) {
             if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) continue;
             double c[3];
             assert_int_equal(as_del3_circumcenter(&d, t, c), 0);
-            const int32_t *tv = d.tet_v + 4 * t;
+            const int32_t *tv = as_del3_tet_vertices(&d, t);
             double err = circum_error(as_del3_point(&d, tv[0]), as_del3_point(&d, tv[1]),
                                       as_del3_point(&d, tv[2]), as_del3_point(&d, tv[3]), c);
             if (err > worst) worst = err;
@@ -1210,7 +1328,7 @@ static void test_circumcenter(void **state) {
             if (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) continue;
             double c[3];
             assert_int_equal(as_del3_circumcenter(&d, t, c), 0);
-            const int32_t *tv = d.tet_v + 4 * t;
+            const int32_t *tv = as_del3_tet_vertices(&d, t);
             double err = circum_error(as_del3_point(&d, tv[0]), as_del3_point(&d, tv[1]),
                                       as_del3_point(&d, tv[2]), as_del3_point(&d, tv[3]), c);
             if (!(err < 0x1p-50)) fail_msg("cocircular tets: circumcenter error %.3e", err);
@@ -1227,7 +1345,7 @@ static void test_circumcenter(void **state) {
 static int globally_delaunay(const as_del3 *d) {
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t)) continue;
-        const int32_t *v = d->tet_v + 4 * t;
+        const int32_t *v = as_del3_tet_vertices(d, t);
         for (int32_t w = 0; w < d->nv; w++) {
             if (w == v[0] || w == v[1] || w == v[2] || w == v[3]) continue;
             if (as_del3_in_sphere(d, t, as_del3_point(d, w), d->gid[w])) return 0;
@@ -1248,29 +1366,35 @@ static void test_validators(void **state) {
     /* combinatorial corruptions are caught */
     int32_t t = 0;
     while (!as_del3_is_live(&d, t) || as_del3_is_infinite(&d, t)) t++;
-    int32_t *tv = d.tet_v + 4 * t, s0 = tv[0];
+    int32_t *tv = d.tet + 8 * t, s0 = tv[0];
     tv[0] = tv[1];
     tv[1] = s0; /* reversed orientation */
     assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
     tv[1] = tv[0];
     tv[0] = s0;
-    int32_t a0 = d.tet_adj[4 * t];
-    d.tet_adj[4 * t] = d.tet_adj[4 * t + 1]; /* a wrong neighbour */
+    int32_t a0 = tv[4];
+    tv[4] = tv[5]; /* a wrong neighbour */
     assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
-    d.tet_adj[4 * t] = a0;
-    int32_t vt = d.vtet[3];
-    d.vtet[3] = d.tet_adj[4 * d.vtet[3]] >> 2; /* a tet that may not hold vertex 3 */
-    if (d.tet_v[4 * d.vtet[3]] != 3 && d.tet_v[4 * d.vtet[3] + 1] != 3 &&
-        d.tet_v[4 * d.vtet[3] + 2] != 3 && d.tet_v[4 * d.vtet[3] + 3] != 3)
+    tv[4] = a0;
+    int32_t vt = d.vert[3].tet;
+    d.vert[3].tet = as_del3_neighbor(&d, vt, 0); /* a tet that may not hold vertex 3 */
+    const int32_t *w = as_del3_tet_vertices(&d, d.vert[3].tet);
+    if (w[0] != 3 && w[1] != 3 && w[2] != 3 && w[3] != 3)
         assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
-    d.vtet[3] = vt;
+    d.vert[3].tet = vt;
+    d.mark[t] = 1; /* a mark left behind */
+    assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
+    d.mark[t] = 0;
+    d.vert[5].loc = 2; /* a cavity-local number left behind */
+    assert_int_equal(as_del3_check_combinatorics(&d), ANISTAR_EINTERNAL);
+    d.vert[5].loc = -1;
     check_all(&d);
     /* Moving a vertex: whenever the tets stay positive, the local test must agree with the
      * global definition; both outcomes must occur. */
     int valid = 0, invalid = 0;
     for (int trial = 0; trial < 300; trial++) {
         int32_t v = (int32_t)(tu_rng_u64(&r) % 50);
-        double *x = d.xyz + 3 * v, save[3] = {x[0], x[1], x[2]};
+        double *x = d.vert[v].x, save[3] = {x[0], x[1], x[2]};
         for (int k = 0; k < 3; k++) x[k] += tu_rng_range(&r, -0.08, 0.08);
         as_del3_forget_spheres(&d); /* the cached spheres of v's tets are stale */
         if (as_del3_check_combinatorics(&d) == ANISTAR_OK) {
@@ -1306,11 +1430,11 @@ static void test_reset_determinism(void **state) {
         assert_int_equal(as_del3_insert(&d, q, n + i, NULL), ANISTAR_OK);
     }
     size_t nt = (size_t)d.nt, nv = (size_t)d.nv;
-    int32_t *tv = malloc(4 * nt * sizeof *tv), *ta = malloc(4 * nt * sizeof *ta);
-    double *xyz = malloc(3 * nv * sizeof *xyz);
-    memcpy(tv, d.tet_v, 4 * nt * sizeof *tv);
-    memcpy(ta, d.tet_adj, 4 * nt * sizeof *ta);
-    memcpy(xyz, d.xyz, 3 * nv * sizeof *xyz);
+    int32_t *tv = malloc(8 * nt * sizeof *tv);
+    as_del3_vertex *vx = malloc(nv * sizeof *vx);
+    assert_true(tv && vx);
+    memcpy(tv, d.tet, 8 * nt * sizeof *tv);
+    memcpy(vx, d.vert, nv * sizeof *vx);
     long allocs = f.al.count;
     size_t bytes = f.al.live_bytes;
     tu_rng r2 = {12};
@@ -1325,16 +1449,14 @@ static void test_reset_determinism(void **state) {
         assert_int_equal(as_del3_insert(&d, q, n + i, NULL), ANISTAR_OK);
     }
     assert_int_equal((size_t)d.nt, nt);
-    assert_memory_equal(tv, d.tet_v, 4 * nt * sizeof *tv);
-    assert_memory_equal(ta, d.tet_adj, 4 * nt * sizeof *ta);
-    assert_memory_equal(xyz, d.xyz, 3 * nv * sizeof *xyz);
+    assert_memory_equal(tv, d.tet, 8 * nt * sizeof *tv);
+    assert_memory_equal(vx, d.vert, nv * sizeof *vx);
     /* only the bulk insertion's temporary arrays were allocated again */
     assert_true(f.al.count - allocs <= 4);
     assert_int_equal(f.al.live_bytes, bytes);
     check_all(&d);
     free(tv);
-    free(ta);
-    free(xyz);
+    free(vx);
     free(p);
     free(p2);
     as_del3_destroy(&d);
@@ -1430,6 +1552,7 @@ int main(void) {
         cmocka_unit_test(test_circumcenter),
         cmocka_unit_test(test_validators),
         cmocka_unit_test(test_sphere_filter),
+        cmocka_unit_test(test_insphere_filter),
         cmocka_unit_test(test_reset_determinism),
         cmocka_unit_test(test_alloc_failures),
     };

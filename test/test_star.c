@@ -84,7 +84,7 @@ static size_t brute_restricted(anistar_context *ctx, const double *pts, const in
         int32_t *g = out + 3 * m;
         int q = 0;
         for (int j = 0; j < 4; j++)
-            if (j != (f & 3)) g[q++] = (int32_t)d.gid[d.tet_v[4 * t1 + j]];
+            if (j != (f & 3)) g[q++] = (int32_t)d.gid[as_del3_tet_vertex(&d, t1, j)];
         for (int a = 0; a < 3; a++)
             for (int b = a + 1; b < 3; b++)
                 if (g[b] < g[a]) {

@@ -9,16 +9,21 @@
  * triangulations of the mesher (tens of points, 8 box corners first) and ordinary large
  * triangulations (10^6 points, bulk insertion with a spatial sort).
  *
- * Layout (struct of arrays, 0-based int32 indices, geogram-style):
- *   vertices  v = 0 .. nv-1     xyz[3v..3v+2] stored (stretched) coordinates,
- *                               gid[v] the caller's global id (int64: the symbolic
- *                               perturbation key), vtet[v] one incident live tet;
- *   tets      t = 0 .. nt-1     tet_v[4t+i] vertex i (AS_DEL3_INF for the infinite vertex,
- *                               AS_DEL3_DEAD in tet_v[4t] for a free slot),
- *                               tet_adj[4t+i] = 4t'+j: the neighbour t' across the face
- *                               opposite vertex i, which is the face of t' opposite its
- *                               vertex j (so tet_adj[tet_adj[4t+i]] == 4t+i),
- *                               next[t] free list / conflict list / visit mark.
+ * Layout (0-based int32 indices; one 32-byte record per vertex and per tet, so that a
+ * neighbour or a vertex costs one cache line):
+ *  vertices  v = 0 .. nv-1   vert[v].x the stored (stretched) coordinates, vert[v].tet one
+ *                            incident live tet, vert[v].loc scratch (-1 between
+ *                            operations; vert[-1] is the infinite vertex's); gid[v] the
+ *                            caller's global id (int64: the symbolic perturbation key);
+ *  tets      t = 0 .. nt-1   tet[8t+i] (i < 4) vertex i (AS_DEL3_INF for the infinite
+ *                            vertex, AS_DEL3_DEAD in tet[8t] for a free slot, whose
+ *                            tet[8t+1] links the free list); tet[8t+4+i] = 8t'+j: the
+ *                            neighbour t' across the face opposite vertex i, which is the
+ *                            face of t' opposite its vertex j (a face "handle": tet[h] is
+ *                            the vertex opposite the face, tet[h+4] its mirror, so
+ *                            tet[tet[h+4]+4] == h); mark[t] scratch (0 between operations).
+ * Read them through the accessors at the end of this file (as_del3_tet_vertices,
+ * as_del3_mirror, ...): faces in the API are numbered 4t+i.
  * Every finite tet is positively oriented: as_orient3d(v0, v1, v2, v3) > 0. An infinite
  * tet has exactly one vertex AS_DEL3_INF; replacing it by a point q gives a positive tet
  * iff q lies strictly outside the convex hull beyond the tet's finite face. Together the
@@ -34,10 +39,10 @@
  *
  * Lifetime: as_del3_init / as_del3_destroy; as_del3_reset empties it and keeps capacity
  * (a reset structure rebuilt with the same calls gives identical arrays). Memory comes
- * from the context allocator; no allocation per tet (amortised array growth): 36 bytes
- * per tet slot (plus 48 of cached sphere while the capacity is at most 2^14 slots: star-
- * sized triangulations), 44 per vertex (about 280 bytes per point for uniform random
- * points).
+ * from the context allocator; no allocation per tet (amortised array growth): 33 bytes
+ * per tet slot (plus 64 of cached sphere when asked for, while the capacity is at most
+ * 2^14 slots: star-sized triangulations), 40 per vertex (about 260 bytes per point for
+ * uniform random points).
  * All functions are reentrant (no globals); one structure is used by one thread at a time.
  *
  * Debug: build with -DAS_DEL3_DEBUG to run both validators after every insertion (an
@@ -52,8 +57,8 @@
 #include "core.h"
 #include "geom/metric.h"
 
-#define AS_DEL3_INF (-1)  /* the infinite vertex, in tet_v */
-#define AS_DEL3_DEAD (-2) /* tet_v[4t] of a free tet slot */
+#define AS_DEL3_INF (-1)  /* the infinite vertex, in the tet records */
+#define AS_DEL3_DEAD (-2) /* tet[8t] of a free tet slot */
 
 /* as_del3_insert's return value when the point equals an existing vertex (equal stored
  * coordinates after stretching, compared with ==, so -0 equals +0): nothing changed,
@@ -69,24 +74,24 @@ typedef struct as_del3_buf {
 
 void as_del3_buf_free(anistar_context *ctx, as_del3_buf *b);
 
-/* A cavity boundary face (internal scratch; exposed only for the struct layout). */
-typedef struct as_del3_bface {
-    int32_t v[4]; /* the new tet: the old tet's vertices with the new point at slot `slot` */
-    int32_t out;  /* 4n+j: the face of the outside neighbour n */
-    int32_t slot; /* where the new point goes */
-} as_del3_bface;
-
 /* Cavity-local vertex numbers: a cavity whose boundary has at most this many vertices is
  * glued through a direct table of AS_DEL3_LMAX^2 entries; bigger ones through a hash. */
 #define AS_DEL3_LMAX 64
 
-/* Doubles per tet slot in the sphere cache (del3.c: N[3], D, e1, e2). */
-#define AS_DEL3_SPH 6
+/* Doubles per tet slot in the sphere cache (del3.c: N[3], D, m, a[3]): 64 bytes. */
+#define AS_DEL3_SPH 8
 
 /* An entry of the cavity edge table (internal). */
 typedef struct as_del3_edge {
     int32_t a, b, link;
 } as_del3_edge;
+
+/* A vertex record (32 bytes: one cache line holds two). */
+typedef struct as_del3_vertex {
+    double x[3];  /* stored (stretched) coordinates */
+    int32_t tet;  /* an incident live tet (valid once the set is 3D) */
+    int32_t loc;  /* cavity-local number during an insertion, -1 otherwise */
+} as_del3_vertex;
 
 /* Counters (always on; cheap). */
 typedef struct as_del3_stats {
@@ -96,9 +101,11 @@ typedef struct as_del3_stats {
     uint64_t created_tets;        /* tets created by insertions */
     uint64_t big_cavities;        /* cavities glued through the hash (> AS_DEL3_LMAX
                                      boundary vertices) */
-    uint64_t sphere_tests;        /* insphere tests of finite tets by the insertions */
-    uint64_t sphere_exact;        /* ... that the cached-sphere filter left to the exact
-                                     predicate */
+    uint64_t sphere_tests;        /* conflict tests of neighbours by the insertions'
+                                     searches (finite and infinite tets) */
+    uint64_t sphere_exact;        /* finite-tet tests that the floating-point filters
+                                     (cached sphere, or the inline filter) left to the
+                                     exact predicate */
 } as_del3_stats;
 
 typedef struct as_del3 {
@@ -107,25 +114,31 @@ typedef struct as_del3 {
     /* vertices */
     int32_t nv;
     size_t cap_v;
-    double *xyz;   /* 3 * cap_v: stored (stretched) coordinates */
-    int64_t *gid;  /* cap_v: global ids (perturbation keys) */
-    int32_t *vtet; /* cap_v: an incident live tet (valid once the set is 3D) */
-    int32_t *vloc; /* cap_v + 1 entries from vloc[-1] (the infinite vertex): cavity-local
-                      numbers during an insertion, -1 otherwise */
+    as_del3_vertex *vert; /* cap_v + 1 records from vert[-1] (the infinite vertex's: its
+                             loc and tet are scratch) */
+    int64_t *gid;         /* cap_v: global ids (perturbation keys) */
+    void *vblk;           /* the block holding vert and gid */
 
     /* tets */
     int32_t nt;    /* slots in use (live or free): 0 .. nt-1 */
     int32_t nlive; /* live tets (finite + infinite) */
     size_t cap_t;
-    int32_t *tet_v, *tet_adj, *next;
-    double *sph; /* cap_t * AS_DEL3_SPH: the cached lifted plane of each finite tet (its
-                    circumsphere as a linear test relative to tet_v[4t], with an error
-                    bound; see del3.c), computed at the tet's first insphere test;
-                    sph[AS_DEL3_SPH t + 4] < 0 until then. NULL (no cache) once cap_t
-                    exceeded 2^14 (until destroyed): big triangulations test directly */
-    int no_sphere_cache; /* set by the owner before the first insertion: never cache the
-                            spheres (the mesher's stars: 48 bytes per tet saved, their
-                            conflict tests have their own filter) */
+    int32_t *tet;  /* 8 * cap_t: the tet records (64-byte aligned) */
+    uint8_t *mark; /* cap_t: visit marks of the current operation */
+    void *tblk;    /* the block holding tet and mark */
+    double *sph; /* cap_t * AS_DEL3_SPH (64-byte aligned) or NULL: the cached lifted plane
+                    of each finite tet (its circumsphere as a linear test relative to one of
+                    its vertices, with an error bound; see del3.c), computed when the tet is
+                    created or at its first test; sph[AS_DEL3_SPH t + 4] < 0 while none.
+                    Only when sphere_cache is set, and only while cap_t is at most 2^14
+                    (dropped for good beyond) */
+    void *sblk;  /* the block holding sph */
+    int sphere_cache;    /* set by the owner before the first insertion: cache the spheres
+                            of a small triangulation. Pays when its tets are tested many
+                            times (repeated queries); off by default: building is faster
+                            without it (measured: bench_del3), and it costs 64 bytes per tet */
+    int no_sphere_cache; /* set by the owner: never cache the spheres, whatever
+                            sphere_cache says (the mesher's stars) */
     int32_t free_head; /* first free slot or -1 */
 
     int dim3;        /* 1 once the points span 3D (tets exist) */
@@ -140,16 +153,20 @@ typedef struct as_del3 {
     /* scratch, kept between insertions */
     int32_t *stack;
     size_t cap_stack;
-    as_del3_bface *bf;
+    int32_t *conf; /* the conflict tets of the last search, in discovery order */
+    size_t nconf, cap_conf;
+    int32_t *crec; /* a copy of each one's record (8 per conflict tet) */
+    size_t cap_crec;
+    int32_t *bf; /* the cavity boundary faces: 8k + i, face i of conflict tet k */
     size_t nbf, cap_bf;
     as_del3_edge *etab; /* power-of-two size cap_etab */
     size_t cap_etab;
     int32_t *etouch;
     size_t cap_etouch;
-    int32_t *ltab; /* AS_DEL3_LMAX^2 entries, 0 between insertions */
+    int32_t *ltab; /* AS_DEL3_LMAX^2 entries: the gluing table */
+    int32_t *gl;   /* the faces registered in it (2 per face) */
+    size_t cap_gl;
     int32_t lverts[AS_DEL3_LMAX + 1]; /* one spare entry: written branch-free */
-    int32_t conflict_head; /* the conflict list (through next) of the last search */
-    int32_t nconflict;
 
     /* the last successful insertion (valid until the next modifying call): the tets it
      * removed and the tets it created. Ids may repeat between the two lists (slots are
@@ -235,6 +252,12 @@ int as_del3_shrink(as_del3 *d);
  * one without storing it. */
 int as_del3_sphere_filter(const as_del3 *d, int32_t t, const double p[3]);
 
+/* The inline insphere filter of triangulations without the sphere cache (tests): +1 / -1
+ * when it certifies the sign of as_insphere(a, b, c, d, e), 0 when it leaves the decision
+ * to the exact predicate. */
+int as_del3_insphere_filter(const double a[3], const double b[3], const double c[3],
+                            const double d[3], const double e[3]);
+
 /*
  * The conflict zone of a point p not (yet) inserted, with provisional global id gid:
  * the tets an insertion of p would remove, in *tets (cleared first), without modifying
@@ -275,29 +298,38 @@ int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]);
 /* ---- small accessors -------------------------------------------------------------------- */
 
 static inline int as_del3_is_live(const as_del3 *d, int32_t t) {
-    return t >= 0 && t < d->nt && d->tet_v[4 * (size_t)t] != AS_DEL3_DEAD;
+    return t >= 0 && t < d->nt && d->tet[8 * (size_t)t] != AS_DEL3_DEAD;
+}
+/* The 4 vertices of tet t (AS_DEL3_INF for the infinite one). */
+static inline const int32_t *as_del3_tet_vertices(const as_del3 *d, int32_t t) {
+    return d->tet + 8 * (size_t)t;
+}
+/* Vertex i (0..3) of tet t. */
+static inline int32_t as_del3_tet_vertex(const as_del3 *d, int32_t t, int i) {
+    return d->tet[8 * (size_t)t + (size_t)i];
 }
 /* 1 if live tet t has the infinite vertex. */
 static inline int as_del3_is_infinite(const as_del3 *d, int32_t t) {
-    const int32_t *v = d->tet_v + 4 * (size_t)t;
+    const int32_t *v = d->tet + 8 * (size_t)t;
     return (v[0] | v[1] | v[2] | v[3]) < 0;
 }
 /* The face on the other side of face 4t+i: 4t'+j. */
 static inline int32_t as_del3_mirror(const as_del3 *d, int32_t face) {
-    return d->tet_adj[face];
+    int32_t h = d->tet[8 * (size_t)(face >> 2) + 4 + (size_t)(face & 3)];
+    return 4 * (h >> 3) + (h & 3);
 }
 static inline int32_t as_del3_neighbor(const as_del3 *d, int32_t t, int i) {
-    return d->tet_adj[4 * (size_t)t + (size_t)i] >> 2;
+    return d->tet[8 * (size_t)t + 4 + (size_t)i] >> 3;
 }
 static inline const double *as_del3_point(const as_del3 *d, int32_t v) {
-    return d->xyz + 3 * (size_t)v;
+    return d->vert[v].x;
 }
 /* Number of finite tets (live tets minus infinite ones) is not stored; count with
  * as_del3_count. */
 void as_del3_count(const as_del3 *d, int32_t *finite_tets, int32_t *infinite_tets);
 
 /* Drop every cached sphere (they are recomputed at the next test). Needed only after
- * changing stored coordinates d->xyz in place (tests do; the library never does). */
+ * changing stored coordinates vert[v].x in place (tests do; the library never does). */
 void as_del3_forget_spheres(as_del3 *d);
 
 /* ---- validators (tests; debug builds after every insertion) --------------------------- */
@@ -307,8 +339,9 @@ void as_del3_forget_spheres(as_del3 *d);
  * adjacency symmetric with equal vertex sets on both sides and opposite orientations;
  * at most one infinite vertex per tet; every finite tet positively oriented (exact
  * orient3d) and its cached sphere, if any, equal to a fresh one; every infinite tet's
- * neighbour across its finite face strictly inside; the link of every vertex (the infinite one too) a triangulated 2-sphere reached from vtet
- * (neighbours = 2 + tets/2), every vertex reachable; V - E + F - T = 0 (with infinite
+ * neighbour across its finite face strictly inside; the link of every vertex (the
+ * infinite one too) a triangulated 2-sphere reached from vert[v].tet (neighbours = 2 +
+ * tets/2), every vertex reachable; all marks clear; V - E + F - T = 0 (with infinite
  * vertex). Returns ANISTAR_OK or ANISTAR_EINTERNAL with a message in the context;
  * ANISTAR_ENOMEM if scratch memory runs out.
  */

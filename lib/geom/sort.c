@@ -17,39 +17,43 @@ static inline uint64_t spread3(uint32_t x) {
     return v;
 }
 
-/* design: no data-dependent branch (the bit tests of the level loop are coin flips for the
- * branch predictor: they cost more than the arithmetic), masks instead; the interleave by
- * bit spreading. Same result as the textbook loops. */
+/* The curve as a 24-state machine: in state s, the cell's octant o = (x bit, y bit, z bit)
+ * of the current level gives the level's index digit hilbert_tab[s][o] & 7 and the next
+ * state hilbert_tab[s][o] >> 3. The states are the 24 rotations of the cube the sub-curves
+ * use; the table was derived from Skilling's transpose form (J. Skilling, "Programming
+ * the Hilbert curve", 2004: undo the excess rotations level by level, Gray-encode,
+ * interleave) by finding, for each octant, the signed axis permutation that maps the
+ * octant's sub-curve onto the whole curve, and composing them from the identity; the two
+ * agree on every input (test_del3 compares them). */
+static const uint8_t hilbert_tab[24][8] = {
+    {8, 17, 27, 2, 39, 46, 52, 5}, {56, 71, 73, 86, 91, 20, 10, 13},
+    {48, 1, 103, 110, 115, 18, 12, 21}, {126, 129, 29, 26, 79, 80, 140, 3},
+    {148, 43, 37, 34, 127, 128, 78, 81}, {156, 45, 35, 42, 31, 6, 160, 105},
+    {72, 87, 139, 4, 57, 70, 50, 53}, {0, 171, 111, 76, 49, 58, 102, 61},
+    {180, 143, 83, 184, 69, 54, 66, 97}, {16, 123, 9, 74, 47, 60, 38, 77},
+    {132, 95, 85, 14, 67, 144, 82, 33}, {142, 55, 185, 96, 93, 116, 90, 11},
+    {188, 107, 175, 176, 101, 98, 62, 65}, {164, 109, 119, 22, 99, 106, 152, 41},
+    {174, 177, 63, 64, 117, 114, 92, 19}, {30, 125, 161, 122, 7, 172, 104, 75},
+    {130, 25, 133, 166, 179, 136, 84, 191}, {94, 15, 141, 28, 145, 32, 138, 51},
+    {146, 155, 149, 36, 137, 24, 190, 167}, {154, 157, 147, 44, 169, 182, 120, 135},
+    {162, 165, 121, 134, 187, 108, 168, 183}, {118, 173, 23, 124, 153, 170, 40, 59},
+    {178, 113, 131, 88, 181, 158, 68, 151}, {186, 163, 89, 112, 189, 100, 150, 159},
+};
+
+/* design: interleave the coordinates' bits (a Morton code), then run the state machine
+ * from the coarsest level: one table load per level, no data-dependent branch (the bit
+ * tests of a level loop are coin flips for the branch predictor). */
 uint64_t as_hilbert3_index(uint32_t x, uint32_t y, uint32_t z, int bits) {
-    uint32_t c0 = x, c1 = y, c2 = z;
-    uint32_t top = (uint32_t)1 << (bits - 1);
-    /* From the coarsest level down: where the bit of axis i is set, flip the lower bits of
-     * axis 0; otherwise swap the lower bits of axes 0 and i. This undoes the reflections
-     * and rotations the curve applies in the sub-cubes. */
-    for (uint32_t q = top; q > 1; q >>= 1) {
-        uint32_t low = q - 1, m, t;
-        m = 0u - ((c0 & q) != 0); /* axis 0: flip if set (a swap with itself is nothing) */
-        c0 ^= low & m;
-        m = 0u - ((c1 & q) != 0);
-        t = (c0 ^ c1) & low & ~m;
-        c0 ^= (low & m) | t;
-        c1 ^= t;
-        m = 0u - ((c2 & q) != 0);
-        t = (c0 ^ c2) & low & ~m;
-        c0 ^= (low & m) | t;
-        c2 ^= t;
-    }
-    /* Gray code across the axes. */
-    c1 ^= c0;
-    c2 ^= c1;
-    uint32_t g = 0;
-    for (uint32_t q = top; q > 1; q >>= 1) g ^= (q - 1) & (0u - ((c2 & q) != 0));
-    c0 ^= g;
-    c1 ^= g;
-    c2 ^= g;
-    /* Interleave: level by level, axis 0 first (bit l of axis i -> bit 3l + 2 - i). */
     uint32_t keep = bits >= 32 ? ~0u : ((uint32_t)1 << bits) - 1;
-    return spread3(c0 & keep) << 2 | spread3(c1 & keep) << 1 | spread3(c2 & keep);
+    uint64_t m = spread3(x & keep) << 2 | spread3(y & keep) << 1 | spread3(z & keep);
+    uint64_t h = 0;
+    unsigned s = 0;
+    for (int l = 3 * (bits - 1); l >= 0; l -= 3) {
+        unsigned e = hilbert_tab[s][(m >> l) & 7u];
+        h = h << 3 | (e & 7u);
+        s = e >> 3;
+    }
+    return h;
 }
 
 static uint64_t mix64(uint64_t z) {

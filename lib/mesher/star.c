@@ -370,7 +370,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         int32_t g[3], lv[3], n = 0;
         for (int j = 0; j < 4; j++) {
             if (j == (face & 3)) continue;
-            lv[n] = d->tet_v[4 * (size_t)t1 + (size_t)j];
+            lv[n] = as_del3_tet_vertex(d, t1, j);
             g[n] = (int32_t)d->gid[lv[n]];
             n++;
         }

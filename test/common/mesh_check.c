@@ -421,7 +421,7 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         int n = 0;
         for (int j = 0; j < 4; j++)
             if (j != (f & 3)) {
-                lv[n] = d->tet_v[4 * (size_t)t[0] + (size_t)j];
+                lv[n] = as_del3_tet_vertex(d, t[0], j);
                 g[n] = (int32_t)d->gid[lv[n]];
                 n++;
             }

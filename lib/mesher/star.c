@@ -533,14 +533,25 @@ static anistar_status star_insert(const as_star_env *env, as_star *st, const as_
 
 anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                              int32_t gid, as_star_scratch *sc) {
+    return as_star_build_seeded(env, st, mf, gid, NULL, 0, sc);
+}
+
+anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, int32_t gid,
+                                    const int32_t *seeds, int32_t n, as_star_scratch *sc) {
     lend(env->ctx, st, sc);
     anistar_status s = star_build(env, st, mf, gid);
+    int32_t nv_base = st->del.nv;
+    for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
+        int ins;
+        s = star_add(env, st, mf, seeds[i], &ins);
+    }
     if (s == ANISTAR_OK) {
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
     unlend(st, sc);
-    st->nv_base = st->del.nv;
+    st->nv_base = nv_base;
     return s;
 }
 

@@ -102,6 +102,16 @@ anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metri
                              int32_t gid, as_star_scratch *sc);
 
 /*
+ * as_star_build, then the sites seeds[0..n) inserted before the restricted facets are
+ * computed: one update instead of two (the facets of the corners-only star are never
+ * used). st->nv_base stays the count after corners and v, as with as_star_build. sc->nold
+ * is 0 afterwards (a new star has no facets from before). Errors as as_star_build.
+ */
+anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, int32_t gid,
+                                    const int32_t *seeds, int32_t n, as_star_scratch *sc);
+
+/*
  * Insert the sites gids[0..n) (points env->xyz) into star st, then recompute its
  * restricted facets, closed flag and box. sc->old/nold receive the restricted facets from
  * before (for the caller's diff). *changed (optional) = number of sites actually inserted

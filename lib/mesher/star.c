@@ -18,6 +18,8 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_del3_buf_free(ctx, &s->tets);
     as_del3_buf_free(ctx, &s->faces);
     as_free(ctx, s->old, (size_t)s->cap_old * sizeof *s->old);
+    as_free(ctx, s->osph, (size_t)s->cap_osph * sizeof *s->osph);
+    as_free(ctx, s->slot, (size_t)s->cap_slot * sizeof *s->slot);
     memset(s, 0, sizeof *s);
 }
 
@@ -333,21 +335,37 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
 
     /* the tets incident to v */
     if ((s = as_del3_vertex_tets(&st->del, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
-    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, (int32_t)sc->tets.n)) != ANISTAR_OK) return s;
-    memcpy(st->itet, sc->tets.a, sc->tets.n * sizeof *st->itet);
-    st->nitet = (int32_t)sc->tets.n;
+    const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
+    if ((s = grow_dbl(ctx, &sc->osph, &sc->cap_osph, 4 * nprev)) != ANISTAR_OK) return s;
+    if (st->del.nt > sc->cap_slot) {
+        int32_t c0 = sc->cap_slot;
+        if ((s = grow_i32(ctx, &sc->slot, &sc->cap_slot, st->del.nt)) != ANISTAR_OK) return s;
+        for (int32_t t = c0; t < sc->cap_slot; t++) sc->slot[t] = -1;
+    }
+    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
+    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;
     /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
      * center c* (R the true radius); with R' = |c - v| the computed radius,
      * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
      * the rounding of these few operations far below the 1e-9 margin) proves y strictly
-     * outside the true sphere: not in conflict, whatever the perturbation. */
-    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * st->nitet)) != ANISTAR_OK) return s;
+     * outside the true sphere: not in conflict, whatever the perturbation. A tet that is
+     * not fresh is unchanged since the last update: its sphere is kept (sc->slot maps its
+     * slot to its place in the previous list, sc->osph). */
+    if (nprev) memcpy(sc->osph, st->isph, 4 * (size_t)nprev * sizeof *sc->osph);
+    for (int32_t i = 0; i < nprev; i++)
+        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = i;
     {
         const as_del3 *d = &st->del;
         const double *V = as_del3_point(d, st->vloc);
-        for (int32_t i = 0; i < st->nitet; i++) {
+        for (int32_t i = 0; i < nnew; i++) {
+            int32_t t = sc->tets.a[i];
             double *S = st->isph + 4 * (size_t)i, dd[3];
-            if (as_del3_circumcenter(d, st->itet[i], S) != 0) {
+            int32_t j = sc->slot[t];
+            if (j >= 0 && !(st->tflag[t] & TF_FRESH)) {
+                memcpy(S, sc->osph + 4 * (size_t)j, 4 * sizeof *S);
+                continue;
+            }
+            if (as_del3_circumcenter(d, t, S) != 0) {
                 S[0] = S[1] = S[2] = 0;
                 S[3] = -1;
                 continue;
@@ -357,6 +375,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
         }
     }
+    for (int32_t i = 0; i < nprev; i++)
+        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = -1;
+    memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
+    st->nitet = nnew;
     if ((s = as_del3_vertex_facets(&st->del, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
     const as_del3 *d = &st->del;
     const double *vx = env->xyz + 3 * (size_t)st->gid;

@@ -85,6 +85,12 @@ typedef struct as_star_scratch {
      * per star, DESIGN.md 4.3 "pool the memory of all stars"). */
     as_del3 donor;
     int donor_init;
+    /* star_update's reuse of circumspheres: the previous isph (osph) and, per tet slot,
+     * its index there (slot; -1 between updates) */
+    double *osph;
+    int32_t cap_osph;
+    int32_t *slot;
+    int32_t cap_slot;
 } as_star_scratch;
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s);

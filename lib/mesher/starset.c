@@ -256,8 +256,16 @@ anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_su
         ss->box_lo[k] = surf->center[k] - h;
         ss->box_hi[k] = surf->center[k] + h;
     }
+    /* design: the corners of the box, each coordinate pushed out by its own fraction of h
+     * (0 to 9.7%). Exact box corners make 4-point planes (the faces, in every frame:
+     * coplanarity is affine invariant) and every star's first insertions go to the exact
+     * predicates (3 times the cost of a star's corners). Pushed apart, no 4 are coplanar
+     * (test_star checks it exactly), so the filters settle them. */
     for (int32_t c = 0; c < 8; c++) {
-        for (int k = 0; k < 3; k++) ss->xyz[3 * c + k] = (c >> k) & 1 ? ss->box_hi[k] : ss->box_lo[k];
+        for (int k = 0; k < 3; k++) {
+            double push = h * (0.02 * ((c * 7 + k * 3) % 5) + 0.002 * c + 0.001 * k);
+            ss->xyz[3 * c + k] = (c >> k) & 1 ? ss->box_hi[k] + push : ss->box_lo[k] - push;
+        }
         identity_frame(&ss->mf[c]);
     }
     ss->n = 8;

@@ -9,6 +9,8 @@
 
 #include "test_util.h"
 
+#include <gmp.h>
+
 #include "geom/del3.h"
 #include "geom/metric.h"
 #include "mesher/star.h"
@@ -228,9 +230,81 @@ static void test_facet_table_vs_rescan(void **state) {
     anistar_context_free(ctx);
 }
 
+/* Exact sign of orient3d(a, b, c, d) with GMP rationals (the doubles converted exactly). */
+static int gmp_orient(const double *a, const double *b, const double *c, const double *d) {
+    mpq_t m[3][3], t, u, det;
+    mpq_init(t);
+    mpq_init(u);
+    mpq_init(det);
+    const double *r[3] = {b, c, d};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            mpq_init(m[i][j]);
+            mpq_set_d(t, r[i][j]);
+            mpq_set_d(u, a[j]);
+            mpq_sub(m[i][j], t, u);
+        }
+    for (int j = 0; j < 3; j++) { /* cofactor expansion along row 0 */
+        int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+        mpq_mul(t, m[1][j1], m[2][j2]);
+        mpq_mul(u, m[1][j2], m[2][j1]);
+        mpq_sub(t, t, u);
+        mpq_mul(t, t, m[0][j]);
+        mpq_add(det, det, t);
+    }
+    int sg = mpq_sgn(det);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) mpq_clear(m[i][j]);
+    mpq_clear(t);
+    mpq_clear(u);
+    mpq_clear(det);
+    return sg;
+}
+
+/* The 8 star corners enclose the box and are in general position: no 4 coplanar, exactly
+ * (so no star frame, an affine map, makes them coplanar, and their insertions stay in the
+ * predicates' filters), for a few surfaces. */
+static void test_corners_generic(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    const char *names[3] = {"sphere", "torus", "ellipsoid"};
+    for (int n = 0; n < 3; n++) {
+        as_surface *s;
+        as_field *f;
+        assert_int_equal(as_implicit_builtin(ctx, names[n], &s), ANISTAR_OK);
+        assert_int_equal(as_field_from_spec(ctx, s, "euclidean", &f), ANISTAR_OK);
+        as_starset ss;
+        assert_int_equal(as_starset_init(&ss, ctx, s, f), ANISTAR_OK);
+        const double *x = ss.xyz;
+        for (int c = 0; c < 8; c++)
+            for (int k = 0; k < 3; k++) {
+                double v = x[3 * c + k];
+                if ((c >> k) & 1) assert_true(v >= ss.box_hi[k]);
+                else assert_true(v <= ss.box_lo[k]);
+                assert_true(ss.box_lo[k] < s->center[k] - s->radius);
+                assert_true(ss.box_hi[k] > s->center[k] + s->radius);
+            }
+        int quads = 0;
+        for (int a = 0; a < 8; a++)
+            for (int b = a + 1; b < 8; b++)
+                for (int c = b + 1; c < 8; c++)
+                    for (int d = c + 1; d < 8; d++) {
+                        assert_int_not_equal(gmp_orient(x + 3 * a, x + 3 * b, x + 3 * c,
+                                                        x + 3 * d), 0);
+                        quads++;
+                    }
+        assert_int_equal(quads, 70);
+        as_starset_destroy(&ss);
+        as_field_free(f);
+        as_surface_free(s);
+    }
+    anistar_context_free(ctx);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fan_closed),
+        cmocka_unit_test(test_corners_generic),
         cmocka_unit_test(test_restricted_vs_brute_force),
         cmocka_unit_test(test_facet_table_vs_rescan),
     };

@@ -18,6 +18,8 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_del3_buf_free(ctx, &s->tets);
     as_del3_buf_free(ctx, &s->faces);
     as_free(ctx, s->old, (size_t)s->cap_old * sizeof *s->old);
+    as_free(ctx, s->osph, (size_t)s->cap_osph * sizeof *s->osph);
+    as_free(ctx, s->slot, (size_t)s->cap_slot * sizeof *s->slot);
     memset(s, 0, sizeof *s);
 }
 
@@ -196,6 +198,21 @@ static anistar_status dual_crossing(const as_star_env *env, const double a[3], c
     return ANISTAR_OK;
 }
 
+/* Does x lie on segment [a, b], clear of its ends (parameter in [1e-9, 1 - 1e-9]) and
+ * within 1e-9 |b - a| of its line? (The rounding of a point computed on the line is far
+ * smaller; a point near an end is left to the full computation.) */
+static int on_segment(const double x[3], const double a[3], const double b[3]) {
+    double d[3], w[3];
+    sub3(b, a, d);
+    sub3(x, a, w);
+    double L2 = dot3(d, d);
+    if (!(L2 > 0)) return 0;
+    double t = dot3(w, d) / L2;
+    if (!(t >= 1e-9 && t <= 1 - 1e-9)) return 0;
+    double e[3] = {w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]};
+    return dot3(e, e) <= 1e-18 * L2;
+}
+
 static int cmp_g(const int32_t a[3], const int32_t b[3]) {
     for (int k = 0; k < 3; k++)
         if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
@@ -333,21 +350,37 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
 
     /* the tets incident to v */
     if ((s = as_del3_vertex_tets(&st->del, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
-    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, (int32_t)sc->tets.n)) != ANISTAR_OK) return s;
-    memcpy(st->itet, sc->tets.a, sc->tets.n * sizeof *st->itet);
-    st->nitet = (int32_t)sc->tets.n;
+    const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
+    if ((s = grow_dbl(ctx, &sc->osph, &sc->cap_osph, 4 * nprev)) != ANISTAR_OK) return s;
+    if (st->del.nt > sc->cap_slot) {
+        int32_t c0 = sc->cap_slot;
+        if ((s = grow_i32(ctx, &sc->slot, &sc->cap_slot, st->del.nt)) != ANISTAR_OK) return s;
+        for (int32_t t = c0; t < sc->cap_slot; t++) sc->slot[t] = -1;
+    }
+    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
+    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;
     /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
      * center c* (R the true radius); with R' = |c - v| the computed radius,
      * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
      * the rounding of these few operations far below the 1e-9 margin) proves y strictly
-     * outside the true sphere: not in conflict, whatever the perturbation. */
-    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * st->nitet)) != ANISTAR_OK) return s;
+     * outside the true sphere: not in conflict, whatever the perturbation. A tet that is
+     * not fresh is unchanged since the last update: its sphere is kept (sc->slot maps its
+     * slot to its place in the previous list, sc->osph). */
+    if (nprev) memcpy(sc->osph, st->isph, 4 * (size_t)nprev * sizeof *sc->osph);
+    for (int32_t i = 0; i < nprev; i++)
+        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = i;
     {
         const as_del3 *d = &st->del;
         const double *V = as_del3_point(d, st->vloc);
-        for (int32_t i = 0; i < st->nitet; i++) {
+        for (int32_t i = 0; i < nnew; i++) {
+            int32_t t = sc->tets.a[i];
             double *S = st->isph + 4 * (size_t)i, dd[3];
-            if (as_del3_circumcenter(d, st->itet[i], S) != 0) {
+            int32_t j = sc->slot[t];
+            if (j >= 0 && !(st->tflag[t] & TF_FRESH)) {
+                memcpy(S, sc->osph + 4 * (size_t)j, 4 * sizeof *S);
+                continue;
+            }
+            if (as_del3_circumcenter(d, t, S) != 0) {
                 S[0] = S[1] = S[2] = 0;
                 S[3] = -1;
                 continue;
@@ -357,6 +390,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
         }
     }
+    for (int32_t i = 0; i < nprev; i++)
+        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = -1;
+    memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
+    st->nitet = nnew;
     if ((s = as_del3_vertex_facets(&st->del, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
     const as_del3 *d = &st->del;
     const double *vx = env->xyz + 3 * (size_t)st->gid;
@@ -378,8 +415,8 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
         as_rfacet *f = &st->rf[st->nrf++];
         int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
-        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
-        if (o >= 0) {
+        int32_t o = find_in(sc->old, sc->nold, g);
+        if (o >= 0 && !fresh) {
             *f = sc->old[o];
             f->fresh = 0;
             f->face = face;
@@ -396,6 +433,19 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
         as_metric_unapply(mf, cc1, a);
         as_metric_unapply(mf, cc2, b);
+        /* design: a facet that was restricted before this update and still is: the sites
+         * inserted since only shortened its dual segment (a Voronoi edge shrinks when sites
+         * are added), so its crossings are a subset of the old ones and the old center,
+         * the crossing nearest the facet's circumcenter, is still that crossing when it
+         * lies on the new segment (the facet's circumcenter does not move). */
+        if (o >= 0 && on_segment(sc->old[o].c, a, b)) {
+            /* the same center and radius: for the rules and the table the facet has not
+             * changed (not fresh, its queue flags kept) */
+            *f = sc->old[o];
+            f->fresh = 0;
+            f->face = face;
+            continue;
+        }
         if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
                              as_del3_point(d, lv[2]), fcs) == 0)
             as_metric_unapply(mf, fcs, fc);
@@ -533,14 +583,25 @@ static anistar_status star_insert(const as_star_env *env, as_star *st, const as_
 
 anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                              int32_t gid, as_star_scratch *sc) {
+    return as_star_build_seeded(env, st, mf, gid, NULL, 0, sc);
+}
+
+anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, int32_t gid,
+                                    const int32_t *seeds, int32_t n, as_star_scratch *sc) {
     lend(env->ctx, st, sc);
     anistar_status s = star_build(env, st, mf, gid);
+    int32_t nv_base = st->del.nv;
+    for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
+        int ins;
+        s = star_add(env, st, mf, seeds[i], &ins);
+    }
     if (s == ANISTAR_OK) {
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
     unlend(st, sc);
-    st->nv_base = st->del.nv;
+    st->nv_base = nv_base;
     return s;
 }
 

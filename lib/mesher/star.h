@@ -85,6 +85,12 @@ typedef struct as_star_scratch {
      * per star, DESIGN.md 4.3 "pool the memory of all stars"). */
     as_del3 donor;
     int donor_init;
+    /* star_update's reuse of circumspheres: the previous isph (osph) and, per tet slot,
+     * its index there (slot; -1 between updates) */
+    double *osph;
+    int32_t cap_osph;
+    int32_t *slot;
+    int32_t cap_slot;
 } as_star_scratch;
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s);
@@ -100,6 +106,16 @@ void as_star_destroy(anistar_context *ctx, as_star *st);
  */
 anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                              int32_t gid, as_star_scratch *sc);
+
+/*
+ * as_star_build, then the sites seeds[0..n) inserted before the restricted facets are
+ * computed: one update instead of two (the facets of the corners-only star are never
+ * used). st->nv_base stays the count after corners and v, as with as_star_build. sc->nold
+ * is 0 afterwards (a new star has no facets from before). Errors as as_star_build.
+ */
+anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, int32_t gid,
+                                    const int32_t *seeds, int32_t n, as_star_scratch *sc);
 
 /*
  * Insert the sites gids[0..n) (points env->xyz) into star st, then recompute its

@@ -53,7 +53,7 @@ typedef struct as_starset {
     as_metric_frame *mf;     /* per id (identity for corners and poles) */
     as_star **stars;         /* per id (NULL for corners and poles) */
     int32_t first_site;      /* 8 + number of poles */
-    double box_lo[3], box_hi[3]; /* the corner box */
+    double box_lo[3], box_hi[3]; /* the box; corners 0-7 lie just outside it */
 
     /* facet table (open addressing, linear probing, backward-shift deletion) */
     as_ftab_entry *tab;

@@ -801,6 +801,40 @@ static void test_star_like(void **state) {
     fx_close(&f);
 }
 
+/* tight_growth: the same triangulation (same records, slot for slot) as doubling growth,
+ * with every capacity within 1/8 (+4) of its use after each insertion. */
+static void test_tight_growth(void **state) {
+    (void)state;
+    fixture f;
+    fx_open(&f, -1);
+    tu_rng r = {11};
+    as_del3 d[2];
+    as_del3_init(&d[0], f.ctx);
+    as_del3_init(&d[1], f.ctx);
+    d[1].tight_growth = 1;
+    double q[3 * 200];
+    for (int i = 0; i < 200; i++)
+        for (int k = 0; k < 3; k++) q[3 * i + k] = tu_rng_range(&r, -1, 1);
+    for (int i = 0; i < 200; i++) {
+        for (int j = 0; j < 2; j++)
+            assert_int_equal(as_del3_insert(&d[j], q + 3 * i, i, NULL), ANISTAR_OK);
+        assert_int_equal(d[0].nt, d[1].nt);
+        assert_int_equal(d[0].nv, d[1].nv);
+        size_t nt = (size_t)d[1].nt, nv = (size_t)d[1].nv;
+        assert_true(d[1].cap_t >= nt && d[1].cap_t <= nt + nt / 8 + 4 + 64);
+        assert_true(d[1].cap_v >= nv && d[1].cap_v <= nv + nv / 8 + 4 + 16);
+    }
+    /* doubling left more slack than the tight growth at the end */
+    assert_true(d[1].cap_t < d[0].cap_t);
+    for (int32_t t = 0; t < d[0].nt; t++)
+        assert_memory_equal(as_del3_tet_vertices(&d[0], t), as_del3_tet_vertices(&d[1], t),
+                            4 * sizeof(int32_t));
+    check_all(&d[1]);
+    as_del3_destroy(&d[0]);
+    as_del3_destroy(&d[1]);
+    fx_close(&f);
+}
+
 /* ---- duplicates and the pending phase ------------------------------------------------- */
 
 static void test_duplicates(void **state) {
@@ -1543,6 +1577,7 @@ int main(void) {
         cmocka_unit_test(test_cospherical),
         cmocka_unit_test(test_stretched),
         cmocka_unit_test(test_star_like),
+        cmocka_unit_test(test_tight_growth),
         cmocka_unit_test(test_duplicates),
         cmocka_unit_test(test_pending),
         cmocka_unit_test(test_brute_force),

@@ -399,7 +399,9 @@ static int buf_reserve(anistar_context *ctx, as_del3_buf *b, size_t need) {
     return 0;
 }
 
-static size_t grown_cap(size_t cap, size_t need) {
+/* The capacity to grow to: doubling, or need + 1/8 (+4) with d->tight_growth. */
+static size_t grown_cap(const as_del3 *d, size_t cap, size_t need) {
+    if (d->tight_growth && need < SIZE_MAX / 2) return need + need / 8 + 4;
     size_t c = cap ? cap : 16;
     while (c < need) c = c > SIZE_MAX / 4 ? need : 2 * c;
     return c;
@@ -447,7 +449,7 @@ static int set_vertex_cap(as_del3 *d, size_t cap) {
 
 static int grow_vertices(as_del3 *d, size_t need) {
     if (need <= d->cap_v) return 0;
-    return set_vertex_cap(d, grown_cap(d->cap_v, need));
+    return set_vertex_cap(d, grown_cap(d, d->cap_v, need));
 }
 
 /* Store point p with global id g as vertex v (capacity reserved). */
@@ -517,7 +519,7 @@ static int set_tet_cap(as_del3 *d, size_t cap) {
 static int grow_tets(as_del3 *d, size_t need) {
     if (need <= d->cap_t) return 0;
     if (need > MAX_TETS) return -1;
-    size_t cap = grown_cap(d->cap_t, need);
+    size_t cap = grown_cap(d, d->cap_t, need);
     if (cap > MAX_TETS) cap = MAX_TETS;
     return set_tet_cap(d, cap);
 }

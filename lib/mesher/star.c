@@ -27,6 +27,7 @@ void as_star_init(as_star *st, anistar_context *ctx) {
     memset(st, 0, sizeof *st);
     as_del3_init(&st->del, ctx);
     st->del.no_sphere_cache = 1; /* design: isph filters its conflict tests (memory) */
+    st->del.tight_growth = 1;    /* design: many small triangulations (memory) */
     st->gid = -1;
     st->vloc = -1;
 }
@@ -632,6 +633,7 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
     as_del3_destroy(&st->del);
     as_del3_init(&st->del, ctx);
     st->del.no_sphere_cache = 1;
+    st->del.tight_growth = 1;
     as_free(ctx, st->tflag, st->cap_tflag);
     st->tflag = NULL;
     st->cap_tflag = 0;

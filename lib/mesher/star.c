@@ -440,11 +440,8 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
          * the crossing nearest the facet's circumcenter, is still that crossing when it
          * lies on the new segment (the facet's circumcenter does not move). */
         if (o >= 0 && on_segment(sc->old[o].c, a, b)) {
-            /* the same center and radius: for the rules and the table the facet has not
-             * changed (not fresh, its queue flags kept) */
-            *f = sc->old[o];
-            f->fresh = 0;
-            f->face = face;
+            memcpy(f->c, sc->old[o].c, sizeof f->c);
+            f->r = sc->old[o].r;
             continue;
         }
         if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),

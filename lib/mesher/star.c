@@ -199,21 +199,6 @@ static anistar_status dual_crossing(const as_star_env *env, const double a[3], c
     return ANISTAR_OK;
 }
 
-/* Does x lie on segment [a, b], clear of its ends (parameter in [1e-9, 1 - 1e-9]) and
- * within 1e-9 |b - a| of its line? (The rounding of a point computed on the line is far
- * smaller; a point near an end is left to the full computation.) */
-static int on_segment(const double x[3], const double a[3], const double b[3]) {
-    double d[3], w[3];
-    sub3(b, a, d);
-    sub3(x, a, w);
-    double L2 = dot3(d, d);
-    if (!(L2 > 0)) return 0;
-    double t = dot3(w, d) / L2;
-    if (!(t >= 1e-9 && t <= 1 - 1e-9)) return 0;
-    double e[3] = {w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]};
-    return dot3(e, e) <= 1e-18 * L2;
-}
-
 static int cmp_g(const int32_t a[3], const int32_t b[3]) {
     for (int k = 0; k < 3; k++)
         if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
@@ -416,8 +401,8 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
         as_rfacet *f = &st->rf[st->nrf++];
         int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
-        int32_t o = find_in(sc->old, sc->nold, g);
-        if (o >= 0 && !fresh) {
+        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
+        if (o >= 0) {
             *f = sc->old[o];
             f->fresh = 0;
             f->face = face;
@@ -434,16 +419,6 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
         as_metric_unapply(mf, cc1, a);
         as_metric_unapply(mf, cc2, b);
-        /* design: a facet that was restricted before this update and still is: the sites
-         * inserted since only shortened its dual segment (a Voronoi edge shrinks when sites
-         * are added), so its crossings are a subset of the old ones and the old center,
-         * the crossing nearest the facet's circumcenter, is still that crossing when it
-         * lies on the new segment (the facet's circumcenter does not move). */
-        if (o >= 0 && on_segment(sc->old[o].c, a, b)) {
-            memcpy(f->c, sc->old[o].c, sizeof f->c);
-            f->r = sc->old[o].r;
-            continue;
-        }
         if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
                              as_del3_point(d, lv[2]), fcs) == 0)
             as_metric_unapply(mf, fcs, fc);

@@ -210,51 +210,12 @@ static inline double orient(const double *a, const double *b, const double *c,
     return r != 0 ? r : as_orient3d(a, b, c, d);
 }
 
-/* The inline insphere filter: the determinant of as_insphere_filter (predicates.h, the
- * same expression, hence the same rounding), tried first against a cheaper bound
- *   Bc = K lmax^2 sqrt(lmax),  K = 64 c (1 + 64 u)   (c = AS_ISP_STATIC, u = AS_EPS),
- * then against the filter's own bound B = c ((sx sy sz) lmax). Bc >= B, so |det| > Bc
- * certifies the sign as |det| > B does (predicates.c proves B). Proof of Bc >= B: every
- * rounded difference x of the filter has x^2 <= L / (1 - u)^3 for the computed lift L of
- * its point (three roundings, all terms positive), so |x| <= sqrt(lmax) (1 - u)^-1.5; the
- * computed sx (two roundings) is at most 4 sqrt(lmax) (1 + u)^2 (1 - u)^-1.5, the same for
- * sy and sz, and the computed B at most 64 c lmax^2.5 (1 + u)^10 (1 - u)^-4.5; the
- * computed Bc (lmax^2, K times it, sqrt, the last product: four roundings) is at least
- * K lmax^2.5 (1 - u)^4 >= 64 c lmax^2.5 (1 + 61 u) (1 - u)^4, which exceeds it. Bc costs a
- * square root and three products instead of 12 absolute values, 9 sums and 4 products,
- * and decides nearly every test (it is at most ~8x looser than B on typical
- * tetrahedra); B is computed only when Bc fails. Returns +1 / -1 when certified, else 0. */
-#define ISP_CHEAP (64.0 * AS_ISP_STATIC * (1.0 + 64.0 * AS_EPS))
-
+/* The inline insphere filter (predicates.h: a cheap bound first, then the full one):
+ * +1 / -1 when it certifies the sign of insphere(a, b, c, d, e), else 0. */
 DEL3_INLINE int isp_filter(const double *a, const double *b, const double *c,
                            const double *d, const double *e) {
-    double aex = a[0] - e[0], bex = b[0] - e[0], cex = c[0] - e[0], dex = d[0] - e[0];
-    double aey = a[1] - e[1], bey = b[1] - e[1], cey = c[1] - e[1], dey = d[1] - e[1];
-    double aez = a[2] - e[2], bez = b[2] - e[2], cez = c[2] - e[2], dez = d[2] - e[2];
-    double ab = aex * bey - bex * aey;
-    double bc = bex * cey - cex * bey;
-    double cd = cex * dey - dex * cey;
-    double da = dex * aey - aex * dey;
-    double ac = aex * cey - cex * aey;
-    double bd = bex * dey - dex * bey;
-    double abc = aez * bc - bez * ac + cez * ab;
-    double bcd = bez * cd - cez * bd + dez * bc;
-    double cda = cez * da + dez * ac + aez * cd;
-    double dab = dez * ab + aez * bd + bez * da;
-    double alift = aex * aex + aey * aey + aez * aez;
-    double blift = bex * bex + bey * bey + bez * bez;
-    double clift = cex * cex + cey * cey + cez * cez;
-    double dlift = dex * dex + dey * dey + dez * dez;
-    double det = (dlift * abc - clift * dab) + (blift * cda - alift * bcd);
-    double m1 = alift > blift ? alift : blift, m2 = clift > dlift ? clift : dlift;
-    double lmax = m1 > m2 ? m1 : m2;
-    double adet = fabs(det);
-    int sg = (det > 0) - (det < 0);
-    if (AS_LIKELY(adet > ISP_CHEAP * (lmax * lmax) * sqrt(lmax))) return sg;
-    double sx = (fabs(aex) + fabs(bex)) + (fabs(cex) + fabs(dex));
-    double sy = (fabs(aey) + fabs(bey)) + (fabs(cey) + fabs(dey));
-    double sz = (fabs(aez) + fabs(bez)) + (fabs(cez) + fabs(dez));
-    return adet > AS_ISP_STATIC * ((sx * sy * sz) * lmax) ? sg : 0;
+    double det = as_insphere_filter(a, b, c, d, e);
+    return (det > 0) - (det < 0);
 }
 /* ---- the cached sphere of a tet ------------------------------------------------------
  * For a finite tet (a, b, c, e) (positively oriented) and a query point p, let u = b - a,

@@ -9,10 +9,9 @@
 
 #include "test_util.h"
 
-#include <gmp.h>
-
 #include "geom/del3.h"
 #include "geom/metric.h"
+#include "geom/predicates.h"
 #include "mesher/star.h"
 #include "mesher/starset.h"
 #include "surface/field.h"
@@ -230,40 +229,10 @@ static void test_facet_table_vs_rescan(void **state) {
     anistar_context_free(ctx);
 }
 
-/* Exact sign of orient3d(a, b, c, d) with GMP rationals (the doubles converted exactly). */
-static int gmp_orient(const double *a, const double *b, const double *c, const double *d) {
-    mpq_t m[3][3], t, u, det;
-    mpq_init(t);
-    mpq_init(u);
-    mpq_init(det);
-    const double *r[3] = {b, c, d};
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            mpq_init(m[i][j]);
-            mpq_set_d(t, r[i][j]);
-            mpq_set_d(u, a[j]);
-            mpq_sub(m[i][j], t, u);
-        }
-    for (int j = 0; j < 3; j++) { /* cofactor expansion along row 0 */
-        int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
-        mpq_mul(t, m[1][j1], m[2][j2]);
-        mpq_mul(u, m[1][j2], m[2][j1]);
-        mpq_sub(t, t, u);
-        mpq_mul(t, t, m[0][j]);
-        mpq_add(det, det, t);
-    }
-    int sg = mpq_sgn(det);
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) mpq_clear(m[i][j]);
-    mpq_clear(t);
-    mpq_clear(u);
-    mpq_clear(det);
-    return sg;
-}
-
-/* The 8 star corners enclose the box and are in general position: no 4 coplanar, exactly
- * (so no star frame, an affine map, makes them coplanar, and their insertions stay in the
- * predicates' filters), for a few surfaces. */
+/* The 8 star corners enclose the box and are in general position: no 4 coplanar, by the
+ * exact as_orient3d (checked against GMP in test_predicates), so no star frame, an affine
+ * map, makes them coplanar and their insertions stay in the predicates' filters; for a
+ * few surfaces. */
 static void test_corners_generic(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
@@ -289,8 +258,8 @@ static void test_corners_generic(void **state) {
             for (int b = a + 1; b < 8; b++)
                 for (int c = b + 1; c < 8; c++)
                     for (int d = c + 1; d < 8; d++) {
-                        assert_int_not_equal(gmp_orient(x + 3 * a, x + 3 * b, x + 3 * c,
-                                                        x + 3 * d), 0);
+                        assert_true(as_orient3d(x + 3 * a, x + 3 * b, x + 3 * c,
+                                                x + 3 * d) != 0);
                         quads++;
                     }
         assert_int_equal(quads, 70);

@@ -552,18 +552,16 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
             limited = 0;
             if (rho == 0) rho = open_radius(ss, st, mf);
             if (rho > 0 && (!st->closed || st->zr2 > AS_STARSET_FAR_ZONE * rho * rho)) {
-                {
-                    double h[3];
-                    as_metric_ellipsoid_box(mf, rho, h);
-                    for (int k = 0; k < 3; k++) {
-                        if (c[k] - h[k] > lo[k]) {
-                            lo[k] = c[k] - h[k];
-                            limited = 1;
-                        }
-                        if (c[k] + h[k] < hi[k]) {
-                            hi[k] = c[k] + h[k];
-                            limited = 1;
-                        }
+                double h[3];
+                as_metric_ellipsoid_box(mf, rho, h);
+                for (int k = 0; k < 3; k++) {
+                    if (c[k] - h[k] > lo[k]) {
+                        lo[k] = c[k] - h[k];
+                        limited = 1;
+                    }
+                    if (c[k] + h[k] < hi[k]) {
+                        hi[k] = c[k] + h[k];
+                        limited = 1;
                     }
                 }
             }

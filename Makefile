@@ -119,6 +119,20 @@ $(BUILD)/obj/bench/%.o: ALL_CPPFLAGS += -Ibench/common -Itest/common
 # Tests find the shared library and the tool of their own variant through these.
 $(BUILD)/obj/test/%.o: ALL_CPPFLAGS += -Itest/common -DAS_TEST_BUILD_DIR='"$(BUILD)"' -DAS_TEST_DATA_DIR='"test/data"'
 
+# del3's debug mode (del3.h "Debug:"): test_del3_debug links a copy of lib/geom/del3.c built
+# with -DAS_DEL3_DEBUG (validators after every insertion). That object defines every
+# as_del3_* symbol, so the archive's own del3.o is never pulled into this program.
+DEL3_DEBUG_OBJ := $(BUILD)/obj/test/del3_debug.o
+$(DEL3_DEBUG_OBJ): lib/geom/del3.c
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CPPFLAGS) $(ALL_CFLAGS) -DAS_DEL3_DEBUG -MMD -MP -c $< -o $@
+$(BUILD)/test/test_del3_debug: $(BUILD)/obj/test/test_del3_debug.o $(DEL3_DEBUG_OBJ) \
+                               $(TEST_COMMON_OBJ) $(STATIC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) $(VARIANT_LDFLAGS) $(LDFLAGS) -o $@ $< $(DEL3_DEBUG_OBJ) \
+	    $(TEST_COMMON_OBJ) $(STATIC_LIB) $(TEST_LDLIBS)
+-include $(DEL3_DEBUG_OBJ:.o=.d)
+
 # ---- check ----------------------------------------------------------------------------
 
 check-deps:

@@ -47,6 +47,8 @@
  *
  * Debug: build with -DAS_DEL3_DEBUG to run both validators after every insertion (an
  * insertion that leaves an invalid triangulation then returns ANISTAR_EINTERNAL).
+ * `make check` exercises this mode: test/test_del3_debug.c links a copy of del3.c built
+ * with -DAS_DEL3_DEBUG (its own Makefile rule) and inserts every point one by one.
  */
 #ifndef ANISTAR_DEL3_H
 #define ANISTAR_DEL3_H

@@ -60,45 +60,6 @@ static void fx_close(fixture *f) {
     assert_int_equal(f->al.live_bytes, 0);
 }
 
-static double gauss(tu_rng *r) {
-    double u = tu_rng_unit(r), v = tu_rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
-}
-
-static double *alloc_pts(int n) {
-    double *p = malloc(3 * (size_t)n * sizeof *p);
-    assert_non_null(p);
-    return p;
-}
-
-static double *pts_cube(tu_rng *r, int n) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(r, -1, 1);
-    return p;
-}
-
-static double *pts_sphere(tu_rng *r, int n) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < n; i++) {
-        double x = gauss(r), y = gauss(r), z = gauss(r), s = sqrt(x * x + y * y + z * z);
-        p[3 * i] = x / s;
-        p[3 * i + 1] = y / s;
-        p[3 * i + 2] = z / s;
-    }
-    return p;
-}
-
-static double *pts_torus(tu_rng *r, int n, double R, double rr) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < n; i++) {
-        double a = tu_rng_range(r, 0, 6.283185307179586), b = tu_rng_range(r, 0, 6.283185307179586);
-        p[3 * i] = (R + rr * cos(b)) * cos(a);
-        p[3 * i + 1] = (R + rr * cos(b)) * sin(a);
-        p[3 * i + 2] = rr * sin(b);
-    }
-    return p;
-}
-
 static int cmp_i64(const void *a, const void *b) {
     int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
     return (x > y) - (x < y);
@@ -313,7 +274,7 @@ static void test_sort(void **state) {
     fx_open(&f, -1);
     tu_rng r = {11};
     int n = 5000;
-    double *p = pts_cube(&r, n);
+    double *p = tu_pts_cube(&r, n);
     int32_t *o1 = malloc((size_t)n * sizeof *o1), *o2 = malloc((size_t)n * sizeof *o2);
     assert_int_equal(as_sort_brio(f.ctx, p, n, 7, o1), ANISTAR_OK);
     assert_int_equal(as_sort_brio(f.ctx, p, n, 7, o2), ANISTAR_OK);
@@ -337,7 +298,7 @@ static void test_sort(void **state) {
     /* A shuffled 16^3 grid: consecutive points are mostly grid neighbours (a Hilbert curve
      * on a finer grid that does not align with this one: a few longer jumps). */
     enum { G = 16, NG = G * G * G };
-    double *g = alloc_pts(NG);
+    double *g = tu_pts_alloc(NG);
     int32_t *og = malloc(NG * sizeof *og);
     for (int i = 0; i < NG; i++) {
         int j = (int)((uint64_t)i * 2654435761u % NG); /* a permutation: odd multiplier */
@@ -372,7 +333,7 @@ static void test_random_cube(void **state) {
     tu_rng r = {1};
     int sizes[2] = {1000, 100000};
     for (int s = 0; s < 2; s++) {
-        double *p = pts_cube(&r, sizes[s]);
+        double *p = tu_pts_cube(&r, sizes[s]);
         as_del3 d;
         build_check(&f, &d, p, sizes[s], NULL);
         int32_t nf, ni;
@@ -392,7 +353,7 @@ static void test_shrink(void **state) {
     fixture f;
     fx_open(&f, -1);
     tu_rng r = {21};
-    double *p = pts_sphere(&r, 600);
+    double *p = tu_pts_sphere(&r, 600);
     for (int nosph = 0; nosph < 2; nosph++) {
         as_del3 a, b;
         as_del3_init(&a, f.ctx);
@@ -427,7 +388,7 @@ static void test_sphere_torus(void **state) {
     fixture f;
     fx_open(&f, -1);
     tu_rng r = {2};
-    double *p = pts_sphere(&r, 5000);
+    double *p = tu_pts_sphere(&r, 5000);
     as_del3 d;
     build_check(&f, &d, p, 5000, NULL);
     /* points in convex position: every vertex is on the hull */
@@ -436,7 +397,7 @@ static void test_sphere_torus(void **state) {
     assert_int_equal(ni, 2 * 5000 - 4);
     as_del3_destroy(&d);
     free(p);
-    p = pts_torus(&r, 8000, 1.0, 0.3);
+    p = tu_pts_torus(&r, 8000, 1.0, 0.3);
     build_check(&f, &d, p, 8000, NULL);
     as_del3_destroy(&d);
     free(p);
@@ -450,7 +411,7 @@ static void test_grid(void **state) {
     fixture f;
     fx_open(&f, -1);
     int n = 1000;
-    double *p = alloc_pts(n);
+    double *p = tu_pts_alloc(n);
     for (int i = 0; i < n; i++) {
         p[3 * i] = i % 10;
         p[3 * i + 1] = (i / 10) % 10;
@@ -502,7 +463,7 @@ static void test_cospherical(void **state) {
     (void)state;
     fixture f;
     fx_open(&f, -1);
-    double *p = alloc_pts(4000);
+    double *p = tu_pts_alloc(4000);
     int n = sphere_lattice(45, 1.0 / 64, p, 3999);
     assert_true(n > 300 && n < 3999);
     p[3 * n] = p[3 * n + 1] = p[3 * n + 2] = 0; /* the center */
@@ -556,7 +517,7 @@ static void filter_vs_exact(as_del3 *d, tu_rng *r, long cnt[3]) {
                 memcpy(q, w, sizeof q);
                 if (k < 4) memcpy(q, as_del3_point(d, tv[k]), sizeof q);
             } else { /* on the circumsphere up to rounding, or a little off it */
-                double g[3] = {gauss(r), gauss(r), gauss(r)};
+                double g[3] = {tu_rng_gauss(r), tu_rng_gauss(r), tu_rng_gauss(r)};
                 double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
                 double f = k < 16 ? 1.0 : 1.0 + tu_rng_range(r, -1e-9, 1e-9);
                 for (int i = 0; i < 3; i++) q[i] = ctr[i] + rad * f * g[i] / gn;
@@ -577,7 +538,7 @@ static void test_sphere_filter(void **state) {
     fx_open(&f, -1);
     tu_rng r = {77};
     long cnt[3] = {0, 0, 0};
-    double *p = alloc_pts(2000);
+    double *p = tu_pts_alloc(2000);
     for (int fam = 0; fam < 5; fam++) {
         int n = 0;
         if (fam == 0) { /* uniform */
@@ -632,7 +593,7 @@ static void test_sphere_filter(void **state) {
     assert_true(cnt[0] > 1000 && cnt[1] > 100 && cnt[2] > 100);
     /* a big triangulation drops the cache (and stays valid through the plain filter) */
     {
-        double *q = pts_cube(&r, 4000);
+        double *q = tu_pts_cube(&r, 4000);
         as_del3 d;
         build_check_cache(&f, &d, q, 4000, NULL, 1);
         assert_true(d.cap_t > ((size_t)1 << 14));
@@ -681,7 +642,7 @@ static void test_insphere_filter(void **state) {
                     const int32_t *w = on15[tu_rng_u64(&r) % 20];
                     for (int j = 0; j < 3; j++) q[i][j] = c[j] + w[j];
                 } else {
-                    double g[3] = {gauss(&r), gauss(&r), gauss(&r)};
+                    double g[3] = {tu_rng_gauss(&r), tu_rng_gauss(&r), tu_rng_gauss(&r)};
                     double n = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
                     for (int j = 0; j < 3; j++) q[i][j] = c[j] + 2.0 * g[j] / n;
                 }
@@ -710,24 +671,6 @@ static void test_insphere_filter(void **state) {
     assert_true(decided * 1000 > total * 999); /* random tests: nearly all decided */
 }
 
-static void random_rotation(tu_rng *r, double q[9]) {
-    double a = gauss(r), b = gauss(r), c = gauss(r), d = gauss(r);
-    double n = sqrt(a * a + b * b + c * c + d * d);
-    a /= n;
-    b /= n;
-    c /= n;
-    d /= n;
-    q[0] = a * a + b * b - c * c - d * d;
-    q[1] = 2 * (b * c - a * d);
-    q[2] = 2 * (b * d + a * c);
-    q[3] = 2 * (b * c + a * d);
-    q[4] = a * a - b * b + c * c - d * d;
-    q[5] = 2 * (c * d - a * b);
-    q[6] = 2 * (b * d - a * c);
-    q[7] = 2 * (c * d + a * b);
-    q[8] = a * a - b * b - c * c + d * d;
-}
-
 /* Points stretched by F with anisotropy 1e3 and 1e5 (random eigenframes): the stored
  * coordinates are F q bit for bit, and the triangulation is valid. */
 static void test_stretched(void **state) {
@@ -738,11 +681,11 @@ static void test_stretched(void **state) {
     double ratios[2] = {1e3, 1e5};
     for (int k = 0; k < 2; k++) {
         double u[9], e[3] = {1, sqrt(ratios[k]), ratios[k]};
-        random_rotation(&r, u);
+        tu_random_rotation(&r, u);
         as_metric_frame mf;
         assert_int_equal(as_metric_frame_from_eigen(&mf, u, e), 0);
         int n = 3000;
-        double *p = k == 0 ? pts_sphere(&r, n) : pts_torus(&r, n, 1.0, 0.4);
+        double *p = k == 0 ? tu_pts_sphere(&r, n) : tu_pts_torus(&r, n, 1.0, 0.4);
         as_del3 d;
         build_check(&f, &d, p, n, &mf);
         for (int32_t v = 0; v < d.nv; v++) {
@@ -843,7 +786,7 @@ static void test_duplicates(void **state) {
     fx_open(&f, -1);
     tu_rng r = {5};
     int n = 500;
-    double *p = alloc_pts(2 * n);
+    double *p = tu_pts_alloc(2 * n);
     for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(&r, -1, 1);
     p[0] = 0.0;
     for (int i = 0; i < n; i++) { /* the second half repeats random points of the first */
@@ -997,7 +940,7 @@ static void test_brute_force(void **state) {
     as_del3 d;
     /* random points */
     for (int rep = 0; rep < 3; rep++) {
-        double *p = pts_cube(&r, 30);
+        double *p = tu_pts_cube(&r, 30);
         build_check(&f, &d, p, 30, NULL);
         brute_force(&d);
         as_del3_destroy(&d);
@@ -1045,7 +988,7 @@ static void test_order_independence(void **state) {
     fx_open(&f, -1);
     tu_rng r = {7};
     int n = 800;
-    double *p = pts_sphere(&r, n);
+    double *p = tu_pts_sphere(&r, n);
     for (int i = 0; i < n / 2; i++) /* half on a sphere, half inside */
         for (int k = 0; k < 3; k++) p[3 * i + k] *= 0.5 + 0.5 * tu_rng_unit(&r);
     as_del3 a, b, c;
@@ -1144,7 +1087,7 @@ static void test_vertex_queries(void **state) {
     fixture f;
     fx_open(&f, -1);
     tu_rng r = {9};
-    double *p = pts_cube(&r, 400);
+    double *p = tu_pts_cube(&r, 400);
     as_del3 d;
     build_check(&f, &d, p, 400, NULL);
     as_del3_buf tets = {0}, facets = {0};
@@ -1393,7 +1336,7 @@ static void test_validators(void **state) {
     fixture f;
     fx_open(&f, -1);
     tu_rng r = {14};
-    double *p = pts_cube(&r, 50);
+    double *p = tu_pts_cube(&r, 50);
     as_del3 d;
     build_check(&f, &d, p, 50, NULL);
     assert_true(globally_delaunay(&d));
@@ -1455,7 +1398,7 @@ static void test_reset_determinism(void **state) {
     fx_open(&f, -1);
     tu_rng r = {12};
     int n = 3000;
-    double *p = pts_torus(&r, n, 1, 0.25);
+    double *p = tu_pts_torus(&r, n, 1, 0.25);
     as_del3 d;
     as_del3_init(&d, f.ctx);
     assert_int_equal(as_del3_insert_points(&d, p, NULL, n, NULL, NULL, NULL), ANISTAR_OK);
@@ -1472,7 +1415,7 @@ static void test_reset_determinism(void **state) {
     long allocs = f.al.count;
     size_t bytes = f.al.live_bytes;
     tu_rng r2 = {12};
-    double *p2 = pts_torus(&r2, n, 1, 0.25);
+    double *p2 = tu_pts_torus(&r2, n, 1, 0.25);
     assert_memory_equal(p, p2, 3 * (size_t)n * sizeof *p);
     as_del3_reset(&d);
     assert_int_equal(d.nv, 0);
@@ -1554,7 +1497,7 @@ static void test_alloc_failures(void **state) {
     (void)state;
     tu_rng r = {13};
     int n = 300;
-    double *p = pts_cube(&r, n);
+    double *p = tu_pts_cube(&r, n);
     for (int i = 0; i < 6; i++) p[3 * i + 2] = 0; /* a coplanar start: the pending phase */
     long total = 0;
     run_alloc_case(-1, p, n, &total);

@@ -61,65 +61,6 @@ static void fx_close(fixture *f) {
     assert_int_equal(f->al.live_bytes, 0);
 }
 
-static double gauss(tu_rng *r) {
-    double u = tu_rng_unit(r), v = tu_rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
-}
-
-static double *alloc_pts(int n) {
-    double *p = malloc(3 * (size_t)n * sizeof *p);
-    assert_non_null(p);
-    return p;
-}
-
-static double *pts_cube(tu_rng *r, int n) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(r, -1, 1);
-    return p;
-}
-
-static double *pts_sphere(tu_rng *r, int n) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < n; i++) {
-        double x = gauss(r), y = gauss(r), z = gauss(r), s = sqrt(x * x + y * y + z * z);
-        p[3 * i] = x / s;
-        p[3 * i + 1] = y / s;
-        p[3 * i + 2] = z / s;
-    }
-    return p;
-}
-
-static double *pts_torus(tu_rng *r, int n, double R, double rr) {
-    double *p = alloc_pts(n);
-    for (int i = 0; i < n; i++) {
-        double a = tu_rng_range(r, 0, 6.283185307179586);
-        double b = tu_rng_range(r, 0, 6.283185307179586);
-        p[3 * i] = (R + rr * cos(b)) * cos(a);
-        p[3 * i + 1] = (R + rr * cos(b)) * sin(a);
-        p[3 * i + 2] = rr * sin(b);
-    }
-    return p;
-}
-
-/* A uniformly random rotation (from a random unit quaternion), row-major. */
-static void random_rotation(tu_rng *r, double q[9]) {
-    double a = gauss(r), b = gauss(r), c = gauss(r), d = gauss(r);
-    double n = sqrt(a * a + b * b + c * c + d * d);
-    a /= n;
-    b /= n;
-    c /= n;
-    d /= n;
-    q[0] = a * a + b * b - c * c - d * d;
-    q[1] = 2 * (b * c - a * d);
-    q[2] = 2 * (b * d + a * c);
-    q[3] = 2 * (b * c + a * d);
-    q[4] = a * a - b * b + c * c - d * d;
-    q[5] = 2 * (c * d - a * b);
-    q[6] = 2 * (b * d - a * c);
-    q[7] = 2 * (c * d + a * b);
-    q[8] = a * a - b * b - c * c + d * d;
-}
-
 /* Insert one point (through mf, NULL: as given) and require ANISTAR_OK: the debug build
  * validated the triangulation it left. The new vertex is nv-1; once the set is 3D, every
  * tet the insertion created holds it (unless it built the first tets). */
@@ -281,7 +222,7 @@ static void test_random_cube(void **state) {
     int sizes[2] = {2000, 600};
     for (int k = 0; k < 2; k++) {
         int n = sizes[k];
-        double *p = pts_cube(&r, n);
+        double *p = tu_pts_cube(&r, n);
         as_del3 d;
         as_del3_init(&d, f.ctx);
         d.sphere_cache = k;
@@ -304,7 +245,7 @@ static void test_sphere(void **state) {
     fx_open(&f);
     tu_rng r = {102};
     int n = 400;
-    double *p = pts_sphere(&r, n);
+    double *p = tu_pts_sphere(&r, n);
     as_del3 d;
     as_del3_init(&d, f.ctx);
     insert_each(&d, NULL, p, n, 0);
@@ -322,7 +263,7 @@ static void test_torus(void **state) {
     fx_open(&f);
     tu_rng r = {108};
     int n = 900;
-    double *p = pts_torus(&r, n, 1.0, 0.35);
+    double *p = tu_pts_torus(&r, n, 1.0, 0.35);
     as_del3 d;
     as_del3_init(&d, f.ctx);
     d.sphere_cache = 1;
@@ -345,7 +286,7 @@ static void test_grid(void **state) {
     fixture f;
     fx_open(&f);
     enum { G = 7, N = G * G * G };
-    double *p = alloc_pts(N);
+    double *p = tu_pts_alloc(N);
     for (int i = 0; i < N; i++) {
         p[3 * i] = i % G;
         p[3 * i + 1] = (i / G) % G;
@@ -400,12 +341,12 @@ static void test_stretched(void **state) {
     tu_rng r = {104};
     for (int k = 0; k < 2; k++) {
         double u[9], e[3] = {1, sqrt(1e3), 1e3};
-        random_rotation(&r, u);
+        tu_random_rotation(&r, u);
         as_metric_frame mf;
         assert_int_equal(as_metric_frame_from_eigen(&mf, u, e), 0);
         assert_true(mf.e[2] / mf.e[0] > 0.999e3 && mf.e[2] / mf.e[0] < 1.001e3);
         int n = 700;
-        double *p = k == 0 ? pts_sphere(&r, n) : pts_torus(&r, n, 1.0, 0.4);
+        double *p = k == 0 ? tu_pts_sphere(&r, n) : tu_pts_torus(&r, n, 1.0, 0.4);
         as_del3 d;
         as_del3_init(&d, f.ctx);
         insert_each(&d, &mf, p, n, 0);
@@ -431,9 +372,9 @@ static void test_duplicates(void **state) {
     fx_open(&f);
     tu_rng r = {105};
     int n = 600, m = 900; /* 600 distinct points, 300 repeats interleaved */
-    double *u = pts_cube(&r, n);
+    double *u = tu_pts_cube(&r, n);
     u[0] = 0.0;
-    double *p = alloc_pts(m);
+    double *p = tu_pts_alloc(m);
     int32_t *src = malloc((size_t)m * sizeof *src);
     assert_non_null(src);
     /* the sequence: points 0, 1, 0 (pending-phase repeat), then distinct points in order,
@@ -578,7 +519,7 @@ static void test_hook_detects_corruption(void **state) {
     fx_open(&f);
     tu_rng r = {107};
     int n = 200;
-    double *p = pts_cube(&r, n);
+    double *p = tu_pts_cube(&r, n);
     as_del3 d;
     as_del3_init(&d, f.ctx);
     insert_each(&d, NULL, p, n, 0);

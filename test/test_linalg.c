@@ -22,33 +22,6 @@ static void check_le(double x, double tol, const char *what, long iter) {
     if (!(x <= tol)) fail_msg("%s (case %ld): %.3e > %.3e", what, iter, x, tol);
 }
 
-/* ---- random matrices ---------------------------------------------------------------- */
-
-static double gauss(tu_rng *r) {
-    double u = tu_rng_unit(r), v = tu_rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
-}
-
-/* A random rotation (rows of q are the images of the axes), from a random unit quaternion
- * (gaussian components: uniform on SO(3)). */
-static void random_rotation(tu_rng *r, double q[9]) {
-    double a = gauss(r), b = gauss(r), c = gauss(r), d = gauss(r);
-    double n = sqrt(a * a + b * b + c * c + d * d);
-    a /= n;
-    b /= n;
-    c /= n;
-    d /= n;
-    q[0] = a * a + b * b - c * c - d * d;
-    q[1] = 2 * (b * c - a * d);
-    q[2] = 2 * (b * d + a * c);
-    q[3] = 2 * (b * c + a * d);
-    q[4] = a * a - b * b + c * c - d * d;
-    q[5] = 2 * (c * d - a * b);
-    q[6] = 2 * (b * d - a * c);
-    q[7] = 2 * (c * d + a * b);
-    q[8] = a * a - b * b - c * c + d * d;
-}
-
 /* A = Q diag(l) Q^T (rounded to doubles), Q's columns are the eigenvectors. */
 static void build_sym(const double q[9], const double l[3], double a[6]) {
     static const int ii[6] = {0, 0, 0, 1, 1, 2}, jj[6] = {0, 1, 2, 1, 2, 2};
@@ -128,7 +101,7 @@ static void test_eigen_random(void **state) {
     tu_rng r = {1};
     for (long it = 0; it < 100000; it++) {
         double q[9], l[3];
-        random_rotation(&r, q);
+        tu_random_rotation(&r, q);
         for (int k = 0; k < 3; k++) l[k] = tu_rng_range(&r, -1, 1);
         check_constructed(q, l, 1e-13, it);
     }
@@ -149,7 +122,7 @@ static void test_eigen_ill_conditioned(void **state) {
     tu_rng r = {2};
     for (long it = 0; it < 50000; it++) {
         double q[9], l[3];
-        random_rotation(&r, q);
+        tu_random_rotation(&r, q);
         double cond = pow(10, 3 + 9 * tu_rng_unit(&r));
         l[0] = 1;
         l[1] = pow(cond, tu_rng_unit(&r));
@@ -174,7 +147,7 @@ static void test_eigen_repeated(void **state) {
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         for (int t = 0; t < 2000; t++, it++) {
             double q[9];
-            random_rotation(&r, q);
+            tu_random_rotation(&r, q);
             check_constructed(q, cases[c], 1e-13, it);
         }
     }
@@ -215,7 +188,7 @@ static void test_eigen_graded(void **state) {
     const double dd[3] = {1, 1e-6, 1e-12};
     for (long it = 0; it < 20000; it++) {
         double q[9], l[3], c[6], a[6], w[3], v[9];
-        random_rotation(&r, q);
+        tu_random_rotation(&r, q);
         for (int k = 0; k < 3; k++) l[k] = tu_rng_range(&r, 0.5, 2);
         build_sym(q, l, c);
         static const int ii[6] = {0, 0, 0, 1, 1, 2}, jj[6] = {0, 1, 2, 1, 2, 2};
@@ -281,7 +254,7 @@ static void test_eigen_canonical_and_rebuild(void **state) {
     tu_rng r = {6};
     for (long it = 0; it < 20000; it++) {
         double q[9], l[3], a[6], w[3], v[9], w2[3], v2[9], b[6];
-        random_rotation(&r, q);
+        tu_random_rotation(&r, q);
         for (int k = 0; k < 3; k++) l[k] = tu_rng_range(&r, -10, 10);
         build_sym(q, l, a);
         assert_int_equal(as_sym3_eigen(a, w, v), 0);

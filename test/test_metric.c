@@ -28,34 +28,10 @@ static void check_le(double x, double tol, const char *what, long iter) {
     if (!(x <= tol)) fail_msg("%s (case %ld): %.3e > %.3e", what, iter, x, tol);
 }
 
-static double gauss(tu_rng *r) {
-    double u = tu_rng_unit(r), v = tu_rng_unit(r);
-    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
-}
-
-/* A random rotation; its rows u + 3k (k = 0..2) form an orthonormal frame. */
-static void random_frame(tu_rng *r, double q[9]) {
-    double a = gauss(r), b = gauss(r), c = gauss(r), d = gauss(r);
-    double n = sqrt(a * a + b * b + c * c + d * d);
-    a /= n;
-    b /= n;
-    c /= n;
-    d /= n;
-    q[0] = a * a + b * b - c * c - d * d;
-    q[1] = 2 * (b * c - a * d);
-    q[2] = 2 * (b * d + a * c);
-    q[3] = 2 * (b * c + a * d);
-    q[4] = a * a - b * b + c * c - d * d;
-    q[5] = 2 * (c * d - a * b);
-    q[6] = 2 * (b * d - a * c);
-    q[7] = 2 * (c * d + a * b);
-    q[8] = a * a - b * b - c * c + d * d;
-}
-
 /* A random metric: frame u (rows), F-eigenvalues e = s * (1, a^t1, a^t2), anisotropy a
  * up to amax, scale s in [1e-2, 1e2]. */
 static void random_metric(tu_rng *r, double amax, double u[9], double e[3]) {
-    random_frame(r, u);
+    tu_random_rotation(r, u);
     double an = pow(amax, tu_rng_unit(r));
     double s = pow(10, tu_rng_range(r, -2, 2));
     e[0] = s;
@@ -280,7 +256,7 @@ static void test_frame_inverse(void **state) {
         as_mat3_mul(mf.f, mf.finv, p);
         for (int k = 0; k < 9; k++)
             check_le(fabs(p[k] - (k % 4 == 0 ? 1 : 0)), 1e-13, "F F^-1 = I (double)", it);
-        double x[3] = {gauss(&r), gauss(&r), gauss(&r)}, y[3], z[3];
+        double x[3] = {tu_rng_gauss(&r), tu_rng_gauss(&r), tu_rng_gauss(&r)}, y[3], z[3];
         as_metric_apply(&mf, x, y);
         as_metric_unapply(&mf, y, z);
         for (int k = 0; k < 3; k++) check_le(fabs(z[k] - x[k]), 1e-12, "unapply(apply)", it);
@@ -498,7 +474,7 @@ static void test_distortion_distance_bounds(void **state) {
         double worst = 0;
         for (int t = 0; t < 20; t++) {
             double p[3], q[3] = {0, 0, 0};
-            for (int k = 0; k < 3; k++) p[k] = gauss(&r);
+            for (int k = 0; k < 3; k++) p[k] = tu_rng_gauss(&r);
             double dm = as_metric_dist(&a, p, q), dn = as_metric_dist(&b, p, q);
             check_le(dn, g * dm * (1 + 1e-13), "d_N <= gamma d_M", it);
             check_le(dm, g * dn * (1 + 1e-13), "d_M <= gamma d_N", it);
@@ -524,7 +500,7 @@ static void test_distortion_filter(void **state) {
         } else {
             /* Perturb: rotate the frame slightly and rescale the axes. */
             double q[9];
-            random_frame(&r, q);
+            tu_random_rotation(&r, q);
             double t = tu_rng_range(&r, 0, 0.3);
             for (int k = 0; k < 9; k++) un[k] = um[k] + t * q[k];
             /* Re-orthonormalise (Gram-Schmidt) to a valid frame. */
@@ -708,7 +684,7 @@ static void test_ellipsoid_box(void **state) {
             check_le(fabs(x[i] - h[i]) / h[i], 1e-13, "box attained", it);
         }
         for (int t = 0; t < 10; t++) {
-            double y[3] = {gauss(&r), gauss(&r), gauss(&r)}, x[3];
+            double y[3] = {tu_rng_gauss(&r), tu_rng_gauss(&r), tu_rng_gauss(&r)}, x[3];
             double n = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
             for (int k = 0; k < 3; k++) y[k] *= rad / n;
             as_metric_unapply(&mf, y, x);
@@ -750,7 +726,7 @@ static void test_api_tensor_valid(void **state) {
         as_sym3_to_mat3(m, mm);
         for (int k = 0; k < 9; k++)
             check_le(fabs(f2[k] - mm[k]) / wm[2], 1e-13, "api sqrt: F^2 = M", it);
-        double a[3] = {gauss(&r), gauss(&r), gauss(&r)}, b[3] = {gauss(&r), gauss(&r), gauss(&r)};
+        double a[3] = {tu_rng_gauss(&r), tu_rng_gauss(&r), tu_rng_gauss(&r)}, b[3] = {tu_rng_gauss(&r), tu_rng_gauss(&r), tu_rng_gauss(&r)};
         assert_int_equal(anistar_tensor_distance(ctx, m, a, b, &d), ANISTAR_OK);
         assert_int_equal(anistar_tensor_distance(ctx, m, b, a, &d2), ANISTAR_OK);
         assert_true(d == d2 && d > 0);

@@ -1,5 +1,7 @@
 #include "test_util.h"
 
+#include <math.h>
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,6 +58,65 @@ uint64_t tu_rng_u64(tu_rng *r) {
 double tu_rng_unit(tu_rng *r) { return (double)(tu_rng_u64(r) >> 11) * 0x1.0p-53; }
 
 double tu_rng_range(tu_rng *r, double lo, double hi) { return lo + (hi - lo) * tu_rng_unit(r); }
+
+double tu_rng_gauss(tu_rng *r) {
+    double u = tu_rng_unit(r), v = tu_rng_unit(r);
+    return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
+}
+
+void tu_random_rotation(tu_rng *r, double q[9]) {
+    double a = tu_rng_gauss(r), b = tu_rng_gauss(r), c = tu_rng_gauss(r), d = tu_rng_gauss(r);
+    double n = sqrt(a * a + b * b + c * c + d * d);
+    a /= n;
+    b /= n;
+    c /= n;
+    d /= n;
+    q[0] = a * a + b * b - c * c - d * d;
+    q[1] = 2 * (b * c - a * d);
+    q[2] = 2 * (b * d + a * c);
+    q[3] = 2 * (b * c + a * d);
+    q[4] = a * a - b * b + c * c - d * d;
+    q[5] = 2 * (c * d - a * b);
+    q[6] = 2 * (b * d - a * c);
+    q[7] = 2 * (c * d + a * b);
+    q[8] = a * a - b * b - c * c + d * d;
+}
+
+double *tu_pts_alloc(int n) {
+    double *p = malloc(3 * (size_t)n * sizeof *p);
+    assert_non_null(p);
+    return p;
+}
+
+double *tu_pts_cube(tu_rng *r, int n) {
+    double *p = tu_pts_alloc(n);
+    for (int i = 0; i < 3 * n; i++) p[i] = tu_rng_range(r, -1, 1);
+    return p;
+}
+
+double *tu_pts_sphere(tu_rng *r, int n) {
+    double *p = tu_pts_alloc(n);
+    for (int i = 0; i < n; i++) {
+        double x = tu_rng_gauss(r), y = tu_rng_gauss(r), z = tu_rng_gauss(r);
+        double s = sqrt(x * x + y * y + z * z);
+        p[3 * i] = x / s;
+        p[3 * i + 1] = y / s;
+        p[3 * i + 2] = z / s;
+    }
+    return p;
+}
+
+double *tu_pts_torus(tu_rng *r, int n, double R, double rr) {
+    double *p = tu_pts_alloc(n);
+    for (int i = 0; i < n; i++) {
+        double a = tu_rng_range(r, 0, 6.283185307179586);
+        double b = tu_rng_range(r, 0, 6.283185307179586);
+        p[3 * i] = (R + rr * cos(b)) * cos(a);
+        p[3 * i + 1] = (R + rr * cos(b)) * sin(a);
+        p[3 * i + 2] = rr * sin(b);
+    }
+    return p;
+}
 
 static void tu_slurp(int fd, char *buf, size_t cap) {
     size_t n = 0;

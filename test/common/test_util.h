@@ -42,6 +42,19 @@ typedef struct tu_rng {
 uint64_t tu_rng_u64(tu_rng *r);
 double tu_rng_unit(tu_rng *r); /* uniform in [0, 1) with 53 random bits */
 double tu_rng_range(tu_rng *r, double lo, double hi);
+double tu_rng_gauss(tu_rng *r); /* standard normal (Box-Muller, two draws) */
+
+/* A uniformly random rotation (from a random unit quaternion: four gaussian draws),
+ * row-major; its rows form an orthonormal frame. */
+void tu_random_rotation(tu_rng *r, double q[9]);
+
+/* n random points (3n doubles, malloc'd: free them; the test fails when out of memory):
+ * uniform in the cube [-1, 1]^3; uniform on the unit sphere; on the torus of radii R, rr
+ * around the z axis (uniform in its two angles). */
+double *tu_pts_alloc(int n); /* room for n points, uninitialised */
+double *tu_pts_cube(tu_rng *r, int n);
+double *tu_pts_sphere(tu_rng *r, int n);
+double *tu_pts_torus(tu_rng *r, int n, double R, double rr);
 
 /* Running the command-line tool as a separate process (tests of examples/anistar.c). */
 typedef struct tu_run_result {

@@ -18,6 +18,7 @@
  * triangulation and no leak.
  */
 #include "test_util.h"
+#include "del3_check.h"
 
 #include "anistar.h"
 #include "core.h"
@@ -60,102 +61,12 @@ static void fx_close(fixture *f) {
     assert_int_equal(f->al.live_bytes, 0);
 }
 
-static int cmp_i64(const void *a, const void *b) {
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return (x > y) - (x < y);
-}
-
-static int cmp_quad(const void *a, const void *b) {
-    const int64_t *x = a, *y = b;
-    for (int i = 0; i < 4; i++)
-        if (x[i] != y[i]) return (x[i] > y[i]) - (x[i] < y[i]);
-    return 0;
-}
-
-static void sort4(int64_t *q) {
-    for (int i = 1; i < 4; i++)
-        for (int j = i; j > 0 && q[j] < q[j - 1]; j--) {
-            int64_t t = q[j];
-            q[j] = q[j - 1];
-            q[j - 1] = t;
-        }
-}
-
-/* All live tets as sorted quadruples of global ids (-1: infinite), sorted. */
-static int64_t *canon(const as_del3 *d, size_t *count) {
-    int64_t *q = malloc(4 * (size_t)(d->nlive + 1) * sizeof *q);
-    assert_non_null(q);
-    size_t n = 0;
-    for (int32_t t = 0; t < d->nt; t++) {
-        if (!as_del3_is_live(d, t)) continue;
-        for (int i = 0; i < 4; i++) {
-            int32_t v = as_del3_tet_vertex(d, t, i);
-            q[4 * n + i] = v < 0 ? -1 : d->gid[v];
-        }
-        sort4(q + 4 * n);
-        n++;
-    }
-    qsort(q, n, 4 * sizeof *q, cmp_quad);
-    *count = n;
-    return q;
-}
-
-static void assert_same_triangulation(const as_del3 *a, const as_del3 *b) {
-    size_t na, nb;
-    int64_t *qa = canon(a, &na), *qb = canon(b, &nb);
-    assert_int_equal(na, nb);
-    assert_memory_equal(qa, qb, 4 * na * sizeof *qa);
-    free(qa);
-    free(qb);
-}
-
-static int64_t count_unique(int64_t *keys, size_t n) {
-    if (n == 0) return 0;
-    qsort(keys, n, sizeof *keys, cmp_i64);
-    int64_t u = 1;
-    for (size_t i = 1; i < n; i++) u += keys[i] != keys[i - 1];
-    return u;
-}
-
-/* Euler's relation of the finite part (a triangulated ball): V - E + F - T = 1, with E and
- * F counted by deduplicating the simplices of the finite tets. */
-static void check_finite_euler(const as_del3 *d) {
-    int32_t nf, ni;
-    as_del3_count(d, &nf, &ni);
-    size_t ne = 0, nfc = 0;
-    int64_t *edges = malloc(6 * (size_t)(nf + 1) * sizeof *edges);
-    int64_t *faces = malloc(4 * (size_t)(nf + 1) * sizeof *faces);
-    assert_non_null(edges);
-    assert_non_null(faces);
-    const int64_t B = (int64_t)d->nv + 1;
-    for (int32_t t = 0; t < d->nt; t++) {
-        if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) continue;
-        int64_t v[4];
-        for (int i = 0; i < 4; i++) v[i] = as_del3_tet_vertex(d, t, i);
-        sort4(v);
-        for (int i = 0; i < 4; i++)
-            for (int j = i + 1; j < 4; j++) edges[ne++] = v[i] * B + v[j];
-        for (int i = 0; i < 4; i++) {
-            int64_t f[3];
-            int k = 0;
-            for (int j = 0; j < 4; j++)
-                if (j != i) f[k++] = v[j];
-            faces[nfc++] = (f[0] * B + f[1]) * B + f[2];
-        }
-    }
-    int64_t E = count_unique(edges, ne), F = count_unique(faces, nfc);
-    int64_t V = d->nv, T = nf;
-    assert_int_equal(V - E + F - T, 1);
-    free(edges);
-    free(faces);
-}
-
 static void check_all(as_del3 *d) {
     anistar_status st = as_del3_check_combinatorics(d);
     if (st != ANISTAR_OK) fail_msg("combinatorics: %s", anistar_last_error(d->ctx));
     st = as_del3_check_delaunay(d);
     if (st != ANISTAR_OK) fail_msg("delaunay: %s", anistar_last_error(d->ctx));
-    if (d->dim3) check_finite_euler(d);
+    if (d->dim3) tu_del3_assert_euler(d);
 }
 
 /* Build from pts (n points, gid i) by bulk insertion and check; sphere_cache: ask for the
@@ -433,7 +344,7 @@ static void test_grid(void **state) {
     for (int i = 0; i < n; i++)
         assert_int_equal(as_del3_insert(&e, p + 3 * i, i, NULL), ANISTAR_OK);
     check_all(&e);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
     free(p);
@@ -475,7 +386,7 @@ static void test_cospherical(void **state) {
     for (int i = n - 1; i >= 0; i--)
         assert_int_equal(as_del3_insert(&e, p + 3 * i, i, NULL), ANISTAR_OK);
     check_all(&e);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     /* in index order the center comes last: every finite tet has its circumsphere centred
      * at the center, so all of them are in conflict: a cavity far beyond the direct table
@@ -486,7 +397,7 @@ static void test_cospherical(void **state) {
     assert_true(e.stats.big_cavities > 0);
     assert_true(e.created.n > 2 * AS_DEL3_LMAX);
     check_all(&e);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
     free(p);
@@ -698,7 +609,7 @@ static void test_stretched(void **state) {
         as_del3_init(&s, f.ctx);
         for (int i = 0; i < n; i++)
             assert_int_equal(as_del3_insert_frame(&s, &mf, p + 3 * i, i, NULL), ANISTAR_OK);
-        assert_same_triangulation(&d, &s);
+        tu_del3_assert_same(&d, &s);
         as_del3_destroy(&s);
         as_del3_destroy(&d);
         free(p);
@@ -808,14 +719,14 @@ static void test_duplicates(void **state) {
     check_all(&d);
     /* single insertion of a duplicate: reported with the vertex, nothing changes */
     size_t nt0;
-    int64_t *before = canon(&d, &nt0);
+    int64_t *before = tu_del3_canon(&d, &nt0);
     for (int i = 0; i < 20; i++) {
         int32_t v = -5;
         assert_int_equal(as_del3_insert(&d, p + 3 * i, 10000 + i, &v), AS_DEL3_DUPLICATE);
         assert_int_equal(v, vx[i]);
     }
     size_t nt1;
-    int64_t *after = canon(&d, &nt1);
+    int64_t *after = tu_del3_canon(&d, &nt1);
     assert_int_equal(nt0, nt1);
     assert_memory_equal(before, after, 4 * nt0 * sizeof *before);
     free(before);
@@ -879,7 +790,7 @@ static void test_pending(void **state) {
         assert_int_equal(as_del3_insert(&e, q, i, NULL), ANISTAR_OK);
     }
     check_all(&e);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
     fx_close(&f);
@@ -1003,8 +914,8 @@ static void test_order_independence(void **state) {
     }
     check_all(&b);
     check_all(&c);
-    assert_same_triangulation(&a, &b);
-    assert_same_triangulation(&a, &c);
+    tu_del3_assert_same(&a, &b);
+    tu_del3_assert_same(&a, &c);
     as_del3_destroy(&a);
     as_del3_destroy(&b);
     as_del3_destroy(&c);
@@ -1119,11 +1030,11 @@ static void test_vertex_queries(void **state) {
             int32_t mir = as_del3_mirror(&d, fc);
             assert_int_equal(as_del3_mirror(&d, mir), fc);
             tri[3] = -1;
-            sort4(tri);
+            tu_sort4(tri);
             keys[nk++] = (tri[1] * d.nv + tri[2]) * d.nv + tri[3];
         }
         size_t before = nk;
-        assert_int_equal(count_unique(keys, nk), (int64_t)before);
+        assert_int_equal(tu_count_unique(keys, nk), (int64_t)before);
         /* brute force: distinct finite faces holding v */
         nk = 0;
         for (int32_t t = 0; t < d.nt; t++) {
@@ -1140,11 +1051,11 @@ static void test_vertex_queries(void **state) {
                 }
                 if (!ok || !fin) continue;
                 tri[3] = -1;
-                sort4(tri);
+                tu_sort4(tri);
                 keys[nk++] = (tri[1] * d.nv + tri[2]) * d.nv + tri[3];
             }
         }
-        assert_int_equal(count_unique(keys, nk), (int64_t)facets.n);
+        assert_int_equal(tu_count_unique(keys, nk), (int64_t)facets.n);
     }
     free(keys);
     as_del3_buf_free(f.ctx, &tets);

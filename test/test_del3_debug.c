@@ -30,6 +30,7 @@
  * never does for a valid insertion.
  */
 #include "test_util.h"
+#include "del3_check.h"
 
 #include "anistar.h"
 #include "core.h"
@@ -88,63 +89,6 @@ static void insert_each(as_del3 *d, const as_metric_frame *mf, const double *pts
     for (int i = 0; i < n; i++) insert_ok(d, mf, pts + 3 * i, gid0 + i);
 }
 
-static int cmp_i64(const void *a, const void *b) {
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return (x > y) - (x < y);
-}
-
-static int cmp_quad(const void *a, const void *b) {
-    const int64_t *x = a, *y = b;
-    for (int i = 0; i < 4; i++)
-        if (x[i] != y[i]) return (x[i] > y[i]) - (x[i] < y[i]);
-    return 0;
-}
-
-static void sort4(int64_t *q) {
-    for (int i = 1; i < 4; i++)
-        for (int j = i; j > 0 && q[j] < q[j - 1]; j--) {
-            int64_t t = q[j];
-            q[j] = q[j - 1];
-            q[j - 1] = t;
-        }
-}
-
-static int64_t count_unique(int64_t *keys, size_t n) {
-    if (n == 0) return 0;
-    qsort(keys, n, sizeof *keys, cmp_i64);
-    int64_t u = 1;
-    for (size_t i = 1; i < n; i++) u += keys[i] != keys[i - 1];
-    return u;
-}
-
-/* All live tets as sorted quadruples of global ids (-1: infinite), sorted. */
-static int64_t *canon(const as_del3 *d, size_t *count) {
-    int64_t *q = malloc(4 * (size_t)(d->nlive + 1) * sizeof *q);
-    assert_non_null(q);
-    size_t n = 0;
-    for (int32_t t = 0; t < d->nt; t++) {
-        if (!as_del3_is_live(d, t)) continue;
-        for (int i = 0; i < 4; i++) {
-            int32_t v = as_del3_tet_vertex(d, t, i);
-            q[4 * n + i] = v < 0 ? -1 : d->gid[v];
-        }
-        sort4(q + 4 * n);
-        n++;
-    }
-    qsort(q, n, 4 * sizeof *q, cmp_quad);
-    *count = n;
-    return q;
-}
-
-static void assert_same_triangulation(const as_del3 *a, const as_del3 *b) {
-    size_t na, nb;
-    int64_t *qa = canon(a, &na), *qb = canon(b, &nb);
-    assert_int_equal(na, nb);
-    assert_memory_equal(qa, qb, 4 * na * sizeof *qa);
-    free(qa);
-    free(qb);
-}
-
 /*
  * The end-of-build sanity checks, counted from the tet records without the validators:
  * the set is 3D with nv vertices; finite + infinite tets = live tets; every vertex is in a
@@ -160,37 +104,21 @@ static int32_t check_counts(const as_del3 *d, int32_t nv) {
     assert_int_equal(nf + ni, d->nlive);
     assert_true(nf > 0 && ni >= 4);
     unsigned char *used = calloc((size_t)nv, 1), *hull = calloc((size_t)nv, 1);
-    int64_t *edges = malloc(6 * (size_t)nf * sizeof *edges);
-    int64_t *faces = malloc(4 * (size_t)nf * sizeof *faces);
-    assert_true(used && hull && edges && faces);
-    size_t ne = 0, nfc = 0;
+    assert_true(used && hull);
     int32_t nlive = 0, ninf = 0;
-    const int64_t B = (int64_t)nv + 1;
     for (int32_t t = 0; t < d->nt; t++) {
         if (!as_del3_is_live(d, t)) continue;
         nlive++;
         const int32_t *tv = as_del3_tet_vertices(d, t);
-        if (as_del3_is_infinite(d, t)) {
-            ninf++;
-            for (int i = 0; i < 4; i++)
-                if (tv[i] >= 0) hull[tv[i]] = 1;
-            continue;
-        }
-        int64_t v[4];
+        int inf = as_del3_is_infinite(d, t);
+        ninf += inf;
         for (int i = 0; i < 4; i++) {
-            assert_true(tv[i] >= 0 && tv[i] < nv);
-            used[tv[i]] = 1;
-            v[i] = tv[i];
-        }
-        sort4(v);
-        for (int i = 0; i < 4; i++)
-            for (int j = i + 1; j < 4; j++) edges[ne++] = v[i] * B + v[j];
-        for (int i = 0; i < 4; i++) {
-            int64_t f[3];
-            int k = 0;
-            for (int j = 0; j < 4; j++)
-                if (j != i) f[k++] = v[j];
-            faces[nfc++] = (f[0] * B + f[1]) * B + f[2];
+            if (tv[i] < 0) continue;
+            assert_true(tv[i] < nv);
+            if (inf)
+                hull[tv[i]] = 1;
+            else
+                used[tv[i]] = 1;
         }
     }
     assert_int_equal(nlive, d->nlive);
@@ -200,13 +128,10 @@ static int32_t check_counts(const as_del3 *d, int32_t nv) {
         if (!used[v]) fail_msg("vertex %d is in no finite tet", (int)v);
         h += hull[v];
     }
-    int64_t E = count_unique(edges, ne), F = count_unique(faces, nfc);
-    assert_int_equal((int64_t)nv - E + F - nf, 1);
+    tu_del3_assert_euler(d);
     assert_int_equal(ni, 2 * h - 4);
     free(used);
     free(hull);
-    free(edges);
-    free(faces);
     return h;
 }
 
@@ -324,7 +249,7 @@ static void test_grid(void **state) {
     as_del3_init(&e, f.ctx);
     for (int i = 0; i < N; i++) insert_ok(&e, NULL, p + 3 * perm[i], perm[i]);
     check_counts(&e, N);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
     free(p);
@@ -418,7 +343,7 @@ static void test_duplicates(void **state) {
     as_del3 e;
     as_del3_init(&e, f.ctx);
     for (int i = 0; i < n; i++) insert_ok(&e, NULL, u + 3 * i, i);
-    assert_same_triangulation(&d, &e);
+    tu_del3_assert_same(&d, &e);
     as_del3_destroy(&e);
     as_del3_destroy(&d);
     free(vof);
@@ -472,13 +397,13 @@ static void test_star_like(void **state) {
         }
         assert_true((dd->sph != NULL) == (rep & 1));
         assert_int_equal(check_counts(dd, N), 8);
-        if (rep == 0) q0 = canon(dd, &nq0);
+        if (rep == 0) q0 = tu_del3_canon(dd, &nq0);
     }
     /* the first set again, in the structure that built it */
     as_del3_reset(&d[0]);
     insert_each(&d[0], NULL, first, N, 0);
     size_t nq;
-    int64_t *q = canon(&d[0], &nq);
+    int64_t *q = tu_del3_canon(&d[0], &nq);
     assert_int_equal(nq, nq0);
     assert_memory_equal(q, q0, 4 * nq * sizeof *q);
     free(q);

@@ -195,18 +195,25 @@ typedef enum anistar_param {
     ANISTAR_PARAM_DELTA,        /* Pick_valid: picking ratio; in (0, 1) (default 0.3) */
     ANISTAR_PARAM_APPROX,       /* approximation bound (distance facet-S); >= 0, 0 = off
                                    (default 0) */
-    ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices;
-                                   integer in [0, 2000000], 0 = the limit 2000000 */
+    ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices, and
+                                   refuse at once (ANISTAR_EINVAL) a run whose up-front
+                                   estimate exceeds it; integer in [0, 2000000], 0 = the
+                                   hard limit 2000000 (default 1000000) */
     ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
                                    refinement; >= 0, 0 = no limit (default) */
     ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
                                    [0, 2^53] (default 0) */
     ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer
                                    in [1, 100000] (default 60) */
-    ANISTAR_PARAM_OPTIMIZE      /* 1: vertex optimisation after a complete run (paper
+    ANISTAR_PARAM_OPTIMIZE,     /* 1: vertex optimisation after a complete run (paper
                                    6.2; moves vertices toward the area-weighted mean of
                                    their facets' surface centers while every guarantee
                                    holds and quality improves); 0 or 1 (default 0) */
+    ANISTAR_PARAM_MAX_STALL     /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
+                                   ANISTAR_STOP_STALL) when this many insertions pass
+                                   without the inconsistent-facet count reaching a new
+                                   low; integer in [0, 2^53], 0 = automatic (default: the
+                                   larger of 50000 and 2 x the vertices so far) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */
@@ -222,22 +229,89 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
 ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_param key,
                                               double *value);
 
-/* Progress callback: called every few hundred insertions with the number of vertices,
- * of inconsistent facets, and the seconds elapsed; return nonzero to cancel the run
- * (anistar_mesher_run then returns ANISTAR_ECANCELED). */
+/* Progress callback: called during anistar_mesher_run every few hundred insertions and
+ * at least every 0.25 s of refinement, with the number of vertices, of inconsistent
+ * facets, and the seconds elapsed; return nonzero to cancel the run
+ * (anistar_mesher_run then returns ANISTAR_ECANCELED and no mesh). The callback may call
+ * anistar_mesher_get_progress for more (the estimate, the stall count). */
 typedef int (*anistar_progress_fn)(size_t vertices, size_t inconsistent, double seconds,
                                    void *user);
 ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
                                              void *user);
 
+/* The state of a run (anistar_mesher_get_progress): all outputs. */
+typedef struct anistar_progress {
+    size_t vertices;          /* surface vertices (sites) so far */
+    size_t inconsistent;      /* inconsistent facets now */
+    double seconds;           /* since the run started */
+    double estimate_vertices; /* up-front estimate of the final vertex count from the
+                                 metric and the sizing field (0 until it is made) */
+    double estimate_bytes;    /* ... and of the run's peak memory */
+    double eta_seconds;       /* estimated seconds left (< 0: unknown) */
+    uint64_t stalled;         /* insertions since the inconsistent-facet count last
+                                 reached a new low */
+    uint64_t max_stall;       /* the stall budget in force (ANISTAR_PARAM_MAX_STALL) */
+} anistar_progress;
+
+/* Copy the state of the current (or last) run of m into *p: from the progress callback
+ * (the thread running anistar_mesher_run) or after the run; not from another thread
+ * while a run goes on. */
+ANISTAR_API anistar_status anistar_mesher_get_progress(const anistar_mesher *m,
+                                                       anistar_progress *p);
+
+/* Ask the current run of m to stop after the insertion in progress: anistar_mesher_run
+ * then returns ANISTAR_INCOMPLETE with the mesh of the consistent facets so far (stop
+ * reason ANISTAR_STOP_REQUESTED), as at a limit. Async-signal-safe and thread-safe: it
+ * only sets a lock-free atomic flag, so a SIGINT handler or another thread may call it.
+ * A call made while no run is going on makes the next run stop at its first check; each
+ * run clears the flag when it ends. */
+ANISTAR_API void anistar_mesher_stop(anistar_mesher *m);
+
+/* Why a run ended: anistar_mesh_stats.stop_reason. */
+typedef enum anistar_stop_reason {
+    ANISTAR_STOP_DONE = 0,         /* refinement finished and the mesh is certified
+                                      (ANISTAR_OK) */
+    ANISTAR_STOP_MAX_VERTICES = 1, /* ANISTAR_PARAM_MAX_VERTICES reached */
+    ANISTAR_STOP_MAX_SECONDS = 2,  /* ANISTAR_PARAM_MAX_SECONDS reached */
+    ANISTAR_STOP_STALL = 3,        /* the inconsistent-facet count reached no new low for
+                                      ANISTAR_PARAM_MAX_STALL insertions */
+    ANISTAR_STOP_REQUESTED = 4,    /* anistar_mesher_stop */
+    ANISTAR_STOP_UNCERTIFIED = 5   /* no rule applies any more, but the mesh fails one of
+                                      the final checks of anistar_mesher_run (the message
+                                      names the check and the place) */
+} anistar_stop_reason;
+
+/* The reason's name: "done", "max_vertices", "max_seconds", "stall", "requested",
+ * "uncertified"; "unknown" otherwise. Static strings. */
+ANISTAR_API const char *anistar_stop_reason_name(int reason);
+
 /*
- * Run the mesher. Returns ANISTAR_OK (no rule applies any more: every facet consistent,
- * a closed mesh when S is closed and r0 small enough), ANISTAR_INCOMPLETE (max_vertices
- * or max_seconds reached: *out holds the consistent facets only; its statistics count
- * the others), ANISTAR_ECANCELED, or an error (ANISTAR_EINVAL for a metric that is not
- * finite and positive definite somewhere, surface errors, ANISTAR_ENOMEM). *out is set
- * (to a mesh to free with anistar_mesh_free) for OK and INCOMPLETE, NULL otherwise. The
- * result depends only on the inputs and the seed (not on the time limit unless reached).
+ * Run the mesher. The three outcomes, and what each guarantees:
+ *
+ * ANISTAR_OK — a certified mesh: non-empty; every restricted facet consistent (in the
+ *   surface star of each of its three vertices); every vertex star one closed fan; the
+ *   mesh a closed, oriented (outward), 2-manifold triangulation; one mesh component for
+ *   each connected component of S that the surface sample found, and no component
+ *   bridging two of them; for a triangle-mesh surface, each component's Euler
+ *   characteristic equal to that of the input component it covers. Every facet then has
+ *   surface circumradius < r0, radius-edge ratio <= rho0 and distortion < gamma0 in the
+ *   metric of each of its three vertices (and meets approx when set).
+ * ANISTAR_INCOMPLETE — *out holds the consistent facets only (its statistics count the
+ *   others; it need not be closed) and anistar_last_error says why: a limit
+ *   (max_vertices, max_seconds), a stall (max_stall), anistar_mesher_stop, or a final
+ *   check that failed (stop reason ANISTAR_STOP_UNCERTIFIED: e.g. a component whose
+ *   Euler characteristic differs from the input's, named with a point on it).
+ * An error — *out is NULL: ANISTAR_EINVAL for a metric that is not finite and positive
+ *   definite at a point of S (the message names the point), or a run refused at once
+ *   because its estimated vertex count exceeds max_vertices (the message gives the
+ *   estimate); ANISTAR_ENOSURFACE, surface errors; ANISTAR_ENOMEM; ANISTAR_ECANCELED
+ *   (the progress callback returned nonzero); ANISTAR_EINTERNAL for a broken invariant
+ *   (e.g. a refinement point within a relative 1e-9 of an existing site, which would
+ *   otherwise refine forever), naming the facet.
+ *
+ * *out is set (to a mesh to free with anistar_mesh_free) for OK and INCOMPLETE, NULL
+ * otherwise. The result depends only on the inputs and the seed (not on the time limit
+ * unless it is reached).
  */
 ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out);
 
@@ -285,6 +359,25 @@ typedef struct anistar_mesh_stats {
     double seconds_optimize;      /* included in seconds_total and seconds_output */
     double rho2_mean_before;
     uint64_t histogram_before[ANISTAR_HISTOGRAM_BINS];
+    /* how the run ended and what it cost */
+    int stop_reason;              /* anistar_stop_reason */
+    size_t components;            /* connected components of the output */
+    double estimate_vertices;     /* the up-front estimate (anistar_progress) */
+    double estimate_bytes;
+    size_t peak_bytes;            /* the most bytes the run held through the context's
+                                     allocator at once */
+    /* why the mesh is as dense as it is: insertions by rule and cause. insertions_rule[0]
+     * is the sum of the four rule-1 causes; a facet violating several counts once, for
+     * its largest ratio */
+    uint64_t insertions_topology; /* topology rule: a vertex star empty or not one closed
+                                     fan */
+    uint64_t insertions_size;     /* rule 1: surface circumradius >= r0 */
+    uint64_t insertions_distortion; /* rule 1: distortion >= gamma0 */
+    uint64_t insertions_approx;   /* rule 1: distance to S > approx */
+    uint64_t insertions_feature;  /* rule 1: circumradius >= a fraction of the local
+                                     feature size (the sizing field's lfs part) */
+    uint64_t stall_max;           /* the longest stretch of insertions without a new low of
+                                     the inconsistent-facet count */
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);

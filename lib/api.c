@@ -183,8 +183,7 @@ struct anistar_mesher {
     const as_surface *surf;
     const as_field *field;
     as_mesher_params prm;
-    anistar_progress_fn progress;
-    void *user;
+    as_run_ctl ctl; /* progress callback, stop flag, published state */
 };
 
 ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anistar_surface *s,
@@ -200,6 +199,8 @@ ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anista
     me->surf = s;
     me->field = m;
     as_mesher_params_default(&me->prm);
+    atomic_init(&me->ctl.stop, 0);
+    me->ctl.state.eta_seconds = -1;
     *out = me;
     return ANISTAR_OK;
 }
@@ -277,6 +278,12 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
             return as_fail(ctx, ANISTAR_EINVAL, "optimize must be 0 or 1, got %g", value);
         p->optimize = (int32_t)value;
         return ANISTAR_OK;
+    case ANISTAR_PARAM_MAX_STALL:
+        if (!as_api_is_int(value, 0, 9007199254740992.0))
+            return as_fail(ctx, ANISTAR_EINVAL, "max_stall must be an integer in [0, 2^53], got %g",
+                           value);
+        p->max_stall = (int64_t)value;
+        return ANISTAR_OK;
     }
     return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_set: unknown parameter %d", (int)key);
 }
@@ -297,6 +304,7 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
     case ANISTAR_PARAM_SEED: *value = (double)p->seed; return ANISTAR_OK;
     case ANISTAR_PARAM_PICK_TRIES: *value = p->pick_tries; return ANISTAR_OK;
     case ANISTAR_PARAM_OPTIMIZE: *value = p->optimize; return ANISTAR_OK; /* optimize.c */
+    case ANISTAR_PARAM_MAX_STALL: *value = (double)p->max_stall; return ANISTAR_OK;
     }
     return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
 }
@@ -304,15 +312,41 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
 ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
                                              void *user) {
     if (!m) return;
-    m->progress = fn;
-    m->user = user;
+    m->ctl.progress = fn;
+    m->ctl.user = user;
+}
+
+ANISTAR_API anistar_status anistar_mesher_get_progress(const anistar_mesher *m,
+                                                       anistar_progress *p) {
+    if (!m || !p) return ANISTAR_EINVAL;
+    *p = m->ctl.state;
+    return ANISTAR_OK;
+}
+
+ANISTAR_API void anistar_mesher_stop(anistar_mesher *m) {
+    /* design: only a lock-free atomic store, so that a signal handler may call it */
+    if (m) atomic_store(&m->ctl.stop, 1);
+}
+
+ANISTAR_API const char *anistar_stop_reason_name(int reason) {
+    switch (reason) {
+    case ANISTAR_STOP_DONE: return "done";
+    case ANISTAR_STOP_MAX_VERTICES: return "max_vertices";
+    case ANISTAR_STOP_MAX_SECONDS: return "max_seconds";
+    case ANISTAR_STOP_STALL: return "stall";
+    case ANISTAR_STOP_REQUESTED: return "requested";
+    case ANISTAR_STOP_UNCERTIFIED: return "uncertified";
+    }
+    return "unknown";
 }
 
 ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out) {
     if (out) *out = NULL;
     if (!m) return ANISTAR_EINVAL;
     if (!out) return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_run: out is NULL");
-    return as_mesher_run(m->ctx, m->surf, m->field, &m->prm, m->progress, m->user, out);
+    anistar_status st = as_mesher_run(m->ctx, m->surf, m->field, &m->prm, &m->ctl, out);
+    atomic_store(&m->ctl.stop, 0);
+    return st;
 }
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh) {

@@ -25,6 +25,9 @@ struct anistar_context {
     anistar_allocator alloc;
     anistar_status last_status;
     char last_error[AS_ERRMSG_SIZE];
+    /* bytes held through as_alloc/as_realloc/as_free, and the most held at once since
+     * peak was last reset (the mesher's memory statistics) */
+    size_t bytes, peak;
 };
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -46,20 +49,37 @@ anistar_status as_fail(anistar_context *ctx, anistar_status st, const char *fmt,
 /* Clear the last error of ctx (successful public calls need not call it). */
 void as_clear_error(anistar_context *ctx);
 
-/* Allocation. Sizes are in bytes. as_alloc(ctx, 0) returns NULL. */
+/* Allocation. Sizes are in bytes. as_alloc(ctx, 0) returns NULL. The context counts the
+ * bytes held (callers pass the sizes they allocated with, as the allocator contract
+ * requires). */
+static inline void as_count_bytes(anistar_context *ctx, size_t freed, size_t got) {
+    ctx->bytes = ctx->bytes - freed + got;
+    if (ctx->bytes > ctx->peak) ctx->peak = ctx->bytes;
+}
 static inline void *as_alloc(anistar_context *ctx, size_t n) {
     if (n == 0) return NULL;
-    return ctx->alloc.fn(ctx->alloc.user, NULL, 0, n);
+    void *q = ctx->alloc.fn(ctx->alloc.user, NULL, 0, n);
+    if (q) as_count_bytes(ctx, 0, n);
+    return q;
 }
 static inline void *as_realloc(anistar_context *ctx, void *p, size_t old_n, size_t new_n) {
+    if (!p) old_n = 0;
     if (new_n == 0) {
-        if (p) ctx->alloc.fn(ctx->alloc.user, p, old_n, 0);
+        if (p) {
+            ctx->alloc.fn(ctx->alloc.user, p, old_n, 0);
+            as_count_bytes(ctx, old_n, 0);
+        }
         return NULL;
     }
-    return ctx->alloc.fn(ctx->alloc.user, p, p ? old_n : 0, new_n);
+    void *q = ctx->alloc.fn(ctx->alloc.user, p, old_n, new_n);
+    if (q) as_count_bytes(ctx, old_n, new_n);
+    return q;
 }
 static inline void as_free(anistar_context *ctx, void *p, size_t n) {
-    if (p) ctx->alloc.fn(ctx->alloc.user, p, n, 0);
+    if (p) {
+        ctx->alloc.fn(ctx->alloc.user, p, n, 0);
+        as_count_bytes(ctx, n, 0);
+    }
 }
 
 /* Overflow-checked size arithmetic: returns 0 and sets *out on success, -1 on overflow. */

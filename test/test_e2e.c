@@ -153,7 +153,7 @@ static void run_case(const e2e_case *c) {
     anistar_mesh *mesh = NULL;
     as_starset *ss = NULL;
     double t0 = now();
-    anistar_status st = as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss);
+    anistar_status st = as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss);
     double t1 = now();
     if (st == ANISTAR_INCOMPLETE) {
         size_t v = mesh->stats.vertices, inc = mesh->stats.inconsistent_facets;
@@ -247,7 +247,7 @@ static void test_checker_catches_damage(void **state) {
     p.r0 = 0.3;
     anistar_mesh *mesh;
     as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss), ANISTAR_OK);
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
     mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * s->radius};
     mc_report rep;
     mc_report_init(&rep);

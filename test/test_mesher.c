@@ -53,7 +53,7 @@ static void run_case(const mcase *c) {
     p.gamma0 = c->gamma0;
     anistar_mesh *mesh;
     as_starset *ss;
-    anistar_status st = as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss);
+    anistar_status st = as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss);
     if (st != ANISTAR_OK) fprintf(stderr, "%s / %s: %s\n", c->surface, c->metric, anistar_last_error(ctx));
     assert_int_equal(st, ANISTAR_OK);
     const anistar_mesh_stats *S = &mesh->stats;
@@ -357,7 +357,7 @@ static void test_max_vertices_incomplete(void **state) {
     p.max_vertices = 150;
     anistar_mesh *mesh;
     as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss), ANISTAR_INCOMPLETE);
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_INCOMPLETE);
     const anistar_mesh_stats *S = &mesh->stats;
     assert_int_equal(S->complete, 0);
     assert_true(S->inconsistent_facets > 0);

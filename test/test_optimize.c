@@ -77,7 +77,7 @@ static void run_case(const ocase *c, double **xyz_out, int32_t **tri_out, size_t
     p.gamma0 = c->gamma0;
     anistar_mesh *mesh;
     as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss), ANISTAR_OK);
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
     assert_int_equal(mesh->stats.complete, 1);
     assert_int_equal(mesh->stats.optimized, 0);
     anistar_mesh_stats before = mesh->stats;
@@ -209,7 +209,7 @@ static void test_move_undo(void **state) {
     p.gamma0 = 2.5;
     anistar_mesh *mesh;
     as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss), ANISTAR_OK);
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
     as_starmove mv;
     memset(&mv, 0, sizeof mv);
     tu_rng rng = {7};
@@ -317,7 +317,7 @@ static void test_enomem(void **state) {
         p.gamma0 = 2.5;
         anistar_mesh *mesh;
         as_starset *ss;
-        assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, NULL, &mesh, &ss), ANISTAR_OK);
+        assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
         if (pass == 0) before = a.count;
         anistar_status st = as_mesher_optimize(ss, &p, &mesh);
         if (pass <= 1) {

@@ -5,6 +5,7 @@
 #ifndef ANISTAR_MESHER_H
 #define ANISTAR_MESHER_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "core.h"
@@ -16,7 +17,8 @@
 /* Parameters (DESIGN.md 4.5; public setters check the ranges). */
 typedef struct as_mesher_params {
     double r0, gamma0, rho0, beta, delta, approx, max_seconds;
-    int64_t max_vertices; /* surface sites; 0: no limit (AS_STARSET_MAX_IDS applies) */
+    int64_t max_vertices; /* surface sites; 0: the hard limit (AS_STARSET_MAX_IDS) */
+    int64_t max_stall;    /* stall budget in insertions; 0: automatic (AS_STALL_MIN, 2 V) */
     uint64_t seed;
     int32_t pick_tries;
     int32_t initial_points; /* initial sites wanted (0: automatic) */
@@ -25,14 +27,36 @@ typedef struct as_mesher_params {
 
 void as_mesher_params_default(as_mesher_params *p);
 
+/* The default of max_vertices, and the automatic stall budget: the larger of
+ * AS_STALL_MIN and AS_STALL_PER_VERTEX times the vertices so far. */
+#define AS_MAX_VERTICES_DEFAULT 1000000
+#define AS_STALL_MIN 50000
+#define AS_STALL_PER_VERTEX 2
+
 /* Progress: return nonzero to cancel. */
 typedef int (*as_progress_fn)(size_t vertices, size_t inconsistent, double seconds, void *user);
 
-/* Counters of one run. */
+/*
+ * The caller's side of a run (NULL: none): the progress callback, the stop request
+ * (set by anistar_mesher_stop from any thread or a signal handler; the run clears it when
+ * it ends), and the state the refiner publishes for anistar_mesher_get_progress.
+ */
+typedef struct as_run_ctl {
+    as_progress_fn progress;
+    void *user;
+    atomic_int stop;
+    anistar_progress state;
+} as_run_ctl;
+
+/* Counters of one run. rule[0] is the sum of the rule-1 causes cause[AS_CAUSE_*]. */
+enum { AS_CAUSE_SIZE = 0, AS_CAUSE_DISTORTION, AS_CAUSE_APPROX, AS_CAUSE_FEATURE, AS_NCAUSES };
 typedef struct as_mesher_counters {
-    uint64_t initial, rule[3];
+    uint64_t initial, rule[3], topology, cause[AS_NCAUSES];
     uint64_t pick_tries, pick_failures;
+    uint64_t stall_max;
     double t_init, t_refine, t_output, t_total;
+    double estimate_vertices, estimate_bytes;
+    int stop_reason; /* anistar_stop_reason */
 } as_mesher_counters;
 
 /* The output mesh (the public anistar_mesh). */
@@ -51,15 +75,13 @@ struct anistar_mesh {
  *   (practical rule 1), 5.3 (poles, conflict zones).
  */
 anistar_status as_mesher_run(anistar_context *ctx, const as_surface *surf, const as_field *field,
-                             const as_mesher_params *prm, as_progress_fn progress, void *user,
-                             anistar_mesh **out);
+                             const as_mesher_params *prm, as_run_ctl *ctl, anistar_mesh **out);
 
 /* For tests: the same run keeping the star set alive (*ss_out, destroy with
  * as_starset_destroy and as_free) so that tests can inspect it; *out as as_mesher_run. */
 anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                                   const as_field *field, const as_mesher_params *prm,
-                                  as_progress_fn progress, void *user, anistar_mesh **out,
-                                  as_starset **ss_out);
+                                  as_run_ctl *ctl, anistar_mesh **out, as_starset **ss_out);
 
 /*
  * Build the output mesh from the star set (output.c): consistent restricted facets of
@@ -69,6 +91,18 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
  */
 anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                                 const as_mesher_counters *cnt, int complete, anistar_mesh **out);
+
+/*
+ * The final checks of a complete run (anistar_mesher_run's contract for ANISTAR_OK), on
+ * the output m of the star set ss (output.c): every site's star one closed fan; the mesh
+ * non-empty, a closed 2-manifold, consistently oriented (m's triangles are reoriented
+ * per component when needed, outward by the normals of S); one output component per
+ * component of the surface sample (the initial sites say which) and no component holding
+ * sites of two; for a triangle-mesh surface, each component's Euler characteristic equal
+ * to the input component's. *ok = 1 when all hold; otherwise *ok = 0 and ctx's message
+ * names the first failure and a point on it. Fills m's stats.components. OK or ENOMEM.
+ */
+anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok);
 
 void as_mesh_free(anistar_mesh *m);
 

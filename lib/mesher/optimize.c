@@ -127,7 +127,7 @@ static anistar_status acceptable(as_starset *ss, const as_mesher_params *prm,
         if (!st->closed) return ANISTAR_OK;
         for (int32_t i = 0; i < st->nrf; i++) {
             anistar_status s;
-            if (as_rule1_violation(ss, prm, id, &st->rf[i], &s) > 0) return s;
+            if (as_rule1_violation(ss, prm, id, &st->rf[i], NULL, &s) > 0) return s;
             if (s != ANISTAR_OK) return s;
             if (as_rule2_violation(ss, prm, id, &st->rf[i]) > 0) return ANISTAR_OK;
         }

@@ -18,7 +18,8 @@ void as_mesher_params_default(as_mesher_params *p) {
     p->delta = 0.3;
     p->approx = 0;
     p->max_seconds = 0;
-    p->max_vertices = 0;
+    p->max_vertices = AS_MAX_VERTICES_DEFAULT;
+    p->max_stall = 0;
     p->seed = 0;
     p->pick_tries = 60;
     p->optimize = 0;
@@ -75,9 +76,9 @@ void as_queue_free(anistar_context *ctx, as_queue *q) {
 /* ---- rule tests --------------------------------------------------------------------- */
 
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
-                          const as_rfacet *f, anistar_status *err) {
-    (void)v;
+                          const as_rfacet *f, int *cause, anistar_status *err) {
     double viol = 0;
+    int why = AS_CAUSE_SIZE;
     *err = ANISTAR_OK;
     if (f->r >= prm->r0) viol = f->r / prm->r0;
     if (f->g[0] >= ss->first_site) {
@@ -92,7 +93,10 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
             double g2 = as_metric_distortion(m0, m2), g3 = as_metric_distortion(m1, m2);
             if (g2 > g) g = g2;
             if (g3 > g) g = g3;
-            if (g >= prm->gamma0 && g / prm->gamma0 > viol) viol = g / prm->gamma0;
+            if (g >= prm->gamma0 && g / prm->gamma0 > viol) {
+                viol = g / prm->gamma0;
+                why = AS_CAUSE_DISTORTION;
+            }
         }
     }
     if (prm->approx > 0) {
@@ -104,11 +108,31 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
         if (s == ANISTAR_OK) {
             double d = sqrt((m[0] - q[0]) * (m[0] - q[0]) + (m[1] - q[1]) * (m[1] - q[1]) +
                             (m[2] - q[2]) * (m[2] - q[2]));
-            if (d > prm->approx && d / prm->approx > viol) viol = d / prm->approx;
+            if (d > prm->approx && d / prm->approx > viol) {
+                viol = d / prm->approx;
+                why = AS_CAUSE_APPROX;
+            }
         } else if (s != ANISTAR_ENOSURFACE) {
             *err = s;
+            return 0;
         }
     }
+    /* design: the lfs part of the sizing field (paper 2.3, sf = min(lfs, dr)): facets of
+     * v's star stay below AS_FEATURE_ALPHA times v's local feature size in M_v */
+    if (v >= ss->first_site) {
+        double lfs;
+        anistar_status s = as_starset_lfs(ss, v, f->r / AS_FEATURE_ALPHA, &lfs);
+        if (s != ANISTAR_OK) {
+            *err = s;
+            return 0;
+        }
+        double x = f->r / (AS_FEATURE_ALPHA * lfs);
+        if (x >= 1 && x > viol) {
+            viol = x;
+            why = AS_CAUSE_FEATURE;
+        }
+    }
+    if (cause) *cause = why;
     return viol;
 }
 
@@ -128,6 +152,13 @@ typedef struct refiner {
     as_queue q[3];
     uint64_t rng;
     as_mesher_counters cnt;
+    as_run_ctl *ctl;         /* the caller's side (may be NULL) */
+    double t0;               /* start of the run */
+    /* stall detection: the lowest inconsistent-facet count since it was last 0, when it
+     * was reached (in insertions), and the vertices then */
+    size_t inc_low;
+    uint64_t insertions, low_at;
+    int64_t low_vertices;
 } refiner;
 
 static uint64_t rng_next(refiner *R) {
@@ -159,7 +190,7 @@ static anistar_status drain(refiner *R) {
         as_rfacet *f = &st->rf[i];
         uint64_t key = as_facet_key(f->g);
         if (!(f->queued & 1)) {
-            double v1 = as_rule1_violation(ss, R->prm, e->star, f, &s);
+            double v1 = as_rule1_violation(ss, R->prm, e->star, f, NULL, &s);
             if (s != ANISTAR_OK) return s;
             if (v1 > 0) {
                 as_qentry q = {v1, key, e->star};
@@ -204,10 +235,68 @@ static anistar_status drain(refiner *R) {
     return ANISTAR_OK;
 }
 
+/* The stall bookkeeping after an insertion (see refiner). */
+static void stall_update(refiner *R) {
+    const as_starset *ss = R->ss;
+    R->insertions++;
+    if (ss->ninc == 0) {
+        R->inc_low = SIZE_MAX;
+        R->low_at = R->insertions;
+        R->low_vertices = ss->n - ss->first_site;
+    } else if (ss->ninc < R->inc_low) {
+        R->inc_low = ss->ninc;
+        R->low_at = R->insertions;
+        R->low_vertices = ss->n - ss->first_site;
+    }
+    uint64_t stalled = R->insertions - R->low_at;
+    if (stalled > R->cnt.stall_max) R->cnt.stall_max = stalled;
+}
+
+/* The stall budget in force (ANISTAR_PARAM_MAX_STALL, automatic when 0). */
+static uint64_t stall_budget(const refiner *R) {
+    if (R->prm->max_stall > 0) return (uint64_t)R->prm->max_stall;
+    uint64_t b = (uint64_t)AS_STALL_PER_VERTEX * (uint64_t)R->low_vertices;
+    return b > AS_STALL_MIN ? b : AS_STALL_MIN;
+}
+
 static anistar_status insert_point(refiner *R, const double p[3]) {
     anistar_status s = as_starset_insert(R->ss, p, NULL);
     if (s != ANISTAR_OK) return s;
+    stall_update(R);
     return drain(R);
+}
+
+anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
+                                     const int32_t g[3], double r) {
+    anistar_context *ctx = ss->ctx;
+    const as_metric_frame *mf = &ss->mf[v];
+    double h[3], lo[3], hi[3], lim = AS_NEAR_SITE * r;
+    as_metric_ellipsoid_box(mf, lim, h);
+    for (int k = 0; k < 3; k++) {
+        lo[k] = p[k] - h[k] * (1 + 1e-9) - 1e-300;
+        hi[k] = p[k] + h[k] * (1 + 1e-9) + 1e-300;
+    }
+    anistar_status s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &ss->ids);
+    if (s != ANISTAR_OK) return s;
+    for (size_t k = 0; k < ss->ids.n; k++) {
+        int32_t q = ss->ids.ids[k];
+        double d = as_metric_dist(mf, p, ss->xyz + 3 * (size_t)q);
+        if (!(d < lim)) continue;
+        if (g)
+            return as_fail(ctx, ANISTAR_EINTERNAL,
+                           "mesher: the refinement point (%.17g, %.17g, %.17g) of facet (%d %d %d) "
+                           "in the star of site %d (radius %.3g) lies %.3g from site %d, within "
+                           "a relative %g: a site missing from that star (a bug; please report "
+                           "it with the command)",
+                           p[0], p[1], p[2], (int)g[0], (int)g[1], (int)g[2], (int)v, r, d,
+                           (int)q, AS_NEAR_SITE);
+        return as_fail(ctx, ANISTAR_EINTERNAL,
+                       "mesher: the topology refinement point (%.17g, %.17g, %.17g) of the star "
+                       "of site %d (distance %.3g) lies %.3g from site %d, within a relative %g "
+                       "(a bug; please report it with the command)",
+                       p[0], p[1], p[2], (int)v, r, d, (int)q, AS_NEAR_SITE);
+    }
+    return ANISTAR_OK;
 }
 
 /* 1 if p coincides with an existing point (kd-tree nearest at distance 0). */
@@ -364,6 +453,55 @@ static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, doub
     return ANISTAR_OK;
 }
 
+/* ---- topology rule ---------------------------------------------------------------------- */
+
+/*
+ * The refinement point of star v whose surface star is empty or not one closed fan
+ * (the topology rule, before rule 1; paper 2.3's sf = min(lfs, dr): such a star means
+ * the sample is too coarse for S around v). *found = 0 when no candidate exists.
+ * design: candidates are points of S in v's M_v-Voronoi cell, as far from v as they
+ * come (the insertion radius of a point of that cell is its M_v distance to v):
+ *  1. the surface centers of v's restricted facets (M_v distance r_v(tau));
+ *  2. for each tet t incident to v, the crossing of S with the segment from v to t's
+ *     circumcenter (mapped back by F_v^-1) nearest that circumcenter: the segment lies
+ *     in v's cell (convex), and every point of it but v is strictly inside t's
+ *     circumsphere, so the point conflicts with v's star and changes it.
+ * The farthest candidate in M_v wins; crossings within a relative 1e-6 of the segment
+ * from v are v itself and are skipped.
+ */
+static anistar_status topology_point(refiner *R, int32_t v, double out[3], double *dist,
+                                     int *found) {
+    as_starset *ss = R->ss;
+    const as_star *st = ss->stars[v];
+    const as_metric_frame mfv = ss->mf[v], *mf = &mfv;
+    const double *x = ss->xyz + 3 * (size_t)v;
+    anistar_status s;
+    *found = 0;
+    *dist = 0;
+    for (int32_t i = 0; i < st->nrf; i++) {
+        if (st->rf[i].r > *dist) {
+            *dist = st->rf[i].r;
+            memcpy(out, st->rf[i].c, 3 * sizeof(double));
+            *found = 1;
+        }
+    }
+    for (int32_t i = 0; i < st->nitet; i++) {
+        const double *S = st->isph + 4 * (size_t)i;
+        if (S[3] == -1) continue;
+        double b[3], c[3];
+        as_metric_unapply(mf, S, b);
+        int hit = 0;
+        if ((s = as_surface_crossing(R->ctx, ss->surf, x, b, b, &hit, c)) != ANISTAR_OK) return s;
+        if (!hit) continue;
+        double d = as_metric_dist(mf, c, x), full = as_metric_dist(mf, b, x);
+        if (!(d > 1e-6 * full) || d <= *dist) continue;
+        *dist = d;
+        memcpy(out, c, sizeof c);
+        *found = 1;
+    }
+    return ANISTAR_OK;
+}
+
 /* ---- initial points ------------------------------------------------------------------- */
 
 /* design: the surface sample (256 points, every component) gives the poles; the initial
@@ -427,10 +565,25 @@ done:
 
 /* ---- main loop ------------------------------------------------------------------------- */
 
-/* Pop the next valid entry of the highest-priority rule; *rule = -1 when none. */
-static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *fout) {
+/* The rules as next_job reports them. */
+enum { JOB_NONE = -1, JOB_RULE1 = 0, JOB_RULE2 = 1, JOB_RULE3 = 2, JOB_TOPOLOGY = 3 };
+
+/* Pop the next valid job: the topology rule first (a star that is not one closed fan),
+ * then the entry of the highest-priority rule; *rule = JOB_NONE when none. */
+static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *fout,
+                               int *cause) {
     as_starset *ss = R->ss;
     anistar_status s;
+    while (ss->nopen > 0) {
+        int32_t v = ss->open[--ss->nopen];
+        as_star *st = ss->stars[v];
+        st->topo_queued = 0;
+        if (st->closed) continue;
+        *rule = JOB_TOPOLOGY;
+        *star = v;
+        memset(fout, 0, sizeof *fout);
+        return ANISTAR_OK;
+    }
     for (int k = 0; k < 3; k++) {
         as_qentry e;
         while (as_queue_pop(&R->q[k], &e)) {
@@ -441,8 +594,9 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
                 int32_t i = as_star_find(st, g);
                 if (i < 0 || !(st->rf[i].queued & (1u << k))) continue;
                 st->rf[i].queued &= (uint8_t) ~(1u << k);
-                double viol = k == 0 ? as_rule1_violation(ss, R->prm, e.star, &st->rf[i], &s)
-                                     : as_rule2_violation(ss, R->prm, e.star, &st->rf[i]);
+                double viol =
+                    k == 0 ? as_rule1_violation(ss, R->prm, e.star, &st->rf[i], cause, &s)
+                           : as_rule2_violation(ss, R->prm, e.star, &st->rf[i]);
                 if (k == 0 && s != ANISTAR_OK) return s;
                 if (viol <= 0) continue;
                 *rule = k;
@@ -460,14 +614,14 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
                 as_star *st = ss->stars[g[b]];
                 int32_t i = as_star_find(st, g);
                 if (i < 0) continue;
-                *rule = 2;
+                *rule = JOB_RULE3;
                 *star = g[b];
                 *fout = st->rf[i];
                 return ANISTAR_OK;
             }
         }
     }
-    *rule = -1;
+    *rule = JOB_NONE;
     return ANISTAR_OK;
 }
 
@@ -487,17 +641,91 @@ static anistar_status requeue_inconsistent(refiner *R, int *pushed) {
     return ANISTAR_OK;
 }
 
+/* Publish the state of the run (anistar_mesher_get_progress). */
+static void publish(refiner *R, double now) {
+    as_run_ctl *ctl = R->ctl;
+    const as_starset *ss = R->ss;
+    anistar_progress *p = &ctl->state;
+    p->vertices = (size_t)(ss->n - ss->first_site);
+    p->inconsistent = ss->ninc;
+    p->seconds = now - R->t0;
+    p->estimate_vertices = R->cnt.estimate_vertices;
+    p->estimate_bytes = R->cnt.estimate_bytes;
+    p->stalled = R->insertions - R->low_at;
+    p->max_stall = stall_budget(R);
+    /* design: the rate of the refinement so far, over the vertices still expected */
+    double refine_s = now - R->t0 - R->cnt.t_init, left = p->estimate_vertices - (double)p->vertices;
+    p->eta_seconds = -1;
+    if (p->vertices > R->cnt.initial && refine_s > 0 && left > 0)
+        p->eta_seconds = left * refine_s / (double)(p->vertices - R->cnt.initial);
+    else if (left <= 0 && p->estimate_vertices > 0)
+        p->eta_seconds = 0;
+}
+
+/* Publish the state and call the progress callback; 1 when it asks to cancel. */
+static int report(refiner *R, double now) {
+    as_run_ctl *ctl = R->ctl;
+    if (!ctl) return 0;
+    publish(R, now);
+    if (!ctl->progress) return 0;
+    const anistar_progress *p = &ctl->state;
+    return ctl->progress(p->vertices, p->inconsistent, p->seconds, ctl->user) != 0;
+}
+
+/* Why the loop stopped before the end, as an INCOMPLETE message in ctx. */
+static void stop_message(refiner *R) {
+    as_starset *ss = R->ss;
+    long long v = (long long)(ss->n - ss->first_site);
+    switch (R->cnt.stop_reason) {
+    case ANISTAR_STOP_MAX_VERTICES:
+        as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                "mesher: stopped at max_vertices (%lld vertices; %zu inconsistent facets left; "
+                "estimate %.0f)",
+                v, ss->ninc, R->cnt.estimate_vertices);
+        break;
+    case ANISTAR_STOP_MAX_SECONDS:
+        as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                "mesher: stopped at max_seconds %g (%lld vertices; %zu inconsistent facets left)",
+                R->prm->max_seconds, v, ss->ninc);
+        break;
+    case ANISTAR_STOP_STALL:
+        as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                "mesher: stalled: %llu insertions without the inconsistent-facet count falling "
+                "below %zu (now %zu, %lld vertices): the metric field or the parameters leave "
+                "inconsistencies that refinement does not resolve (try a larger r0, a smaller "
+                "gamma0, or a smoother metric)",
+                (unsigned long long)(R->insertions - R->low_at), R->inc_low, ss->ninc, v);
+        break;
+    case ANISTAR_STOP_REQUESTED:
+        as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                "mesher: stopped on request (%lld vertices; %zu inconsistent facets left)", v,
+                ss->ninc);
+        break;
+    default:
+        break;
+    }
+}
+
 anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                                   const as_field *field, const as_mesher_params *prm,
-                                  as_progress_fn progress, void *user, anistar_mesh **out,
-                                  as_starset **ss_out) {
+                                  as_run_ctl *ctl, anistar_mesh **out, as_starset **ss_out) {
     *out = NULL;
     if (ss_out) *ss_out = NULL;
     double t0 = now_seconds();
+    size_t bytes0 = ctx->bytes;
+    ctx->peak = ctx->bytes;
     refiner R;
     memset(&R, 0, sizeof R);
     R.ctx = ctx;
     R.prm = prm;
+    R.ctl = ctl;
+    R.t0 = t0;
+    R.inc_low = SIZE_MAX;
+    R.cnt.stop_reason = ANISTAR_STOP_DONE;
+    if (ctl) {
+        memset(&ctl->state, 0, sizeof ctl->state);
+        ctl->state.eta_seconds = -1;
+    }
     /* splitmix64 of the seed: never zero for xorshift */
     uint64_t z = prm->seed + 0x9E3779B97F4A7C15ULL;
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
@@ -506,20 +734,34 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     as_starset *ss = as_alloc(ctx, sizeof *ss);
     if (!ss) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
     R.ss = ss;
+    int64_t maxv = prm->max_vertices > 0 ? prm->max_vertices : AS_STARSET_MAX_IDS - 1024;
+    if (maxv > AS_STARSET_MAX_IDS - 1024) maxv = AS_STARSET_MAX_IDS - 1024;
     anistar_status s = as_starset_init(ss, ctx, surf, field);
     int complete = 0;
+    /* design: the up-front estimate refuses at once a run that cannot fit (DESIGN.md 4.5) */
+    if (s == ANISTAR_OK)
+        s = as_mesher_estimate(ss, prm, &R.cnt.estimate_vertices, &R.cnt.estimate_bytes);
+    if (s == ANISTAR_OK && R.cnt.estimate_vertices > (double)maxv)
+        s = as_fail(ctx, ANISTAR_EINVAL,
+                    "mesher: refused: the metric and r0 ask for about %.3g vertices (%.3g GB), "
+                    "more than max_vertices %lld; raise r0 or max_vertices",
+                    R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv);
     if (s == ANISTAR_OK) s = initial_points(&R);
     double t1 = now_seconds();
     R.cnt.t_init = t1 - t0;
-    int64_t maxv = prm->max_vertices > 0 ? prm->max_vertices : AS_STARSET_MAX_IDS - 1024;
+    double last_report = t1;
     uint64_t steps = 0;
     int requeues = 0;
     while (s == ANISTAR_OK) {
-        int rule = -1;
+        if (ctl && atomic_load(&ctl->stop)) {
+            R.cnt.stop_reason = ANISTAR_STOP_REQUESTED;
+            break;
+        }
+        int rule = JOB_NONE, cause = AS_CAUSE_SIZE;
         int32_t v = -1;
         as_rfacet f;
-        if ((s = next_job(&R, &rule, &v, &f)) != ANISTAR_OK) break;
-        if (rule < 0) {
+        if ((s = next_job(&R, &rule, &v, &f, &cause)) != ANISTAR_OK) break;
+        if (rule == JOB_NONE) {
             int pushed = 0;
             if (ss->ninc == 0) {
                 complete = 1;
@@ -527,48 +769,92 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             }
             /* design: inconsistent facets whose queue entry was consumed without killing
              * them (their stars did not re-emit them) are queued again from the exact set;
-             * a bounded number of rounds without progress ends the run as incomplete. */
+             * a bounded number of rounds without progress ends the run as a stall. */
             if ((s = requeue_inconsistent(&R, &pushed)) != ANISTAR_OK) break;
-            if (pushed == 0 || ++requeues > 64) break;
+            if (pushed == 0 || ++requeues > 64) {
+                R.cnt.stop_reason = ANISTAR_STOP_STALL;
+                break;
+            }
             continue;
         }
-        if ((int64_t)(ss->n - ss->first_site) >= maxv) break;
-        if (prm->max_seconds > 0 && now_seconds() - t1 > prm->max_seconds) break;
-        if (progress && (steps & 255) == 0 &&
-            progress((size_t)(ss->n - ss->first_site), ss->ninc, now_seconds() - t0, user)) {
-            s = as_fail(ctx, ANISTAR_ECANCELED, "mesher: canceled by the progress callback");
+        if ((int64_t)(ss->n - ss->first_site) >= maxv) {
+            R.cnt.stop_reason = ANISTAR_STOP_MAX_VERTICES;
             break;
+        }
+        double now = now_seconds();
+        if (prm->max_seconds > 0 && now - t1 > prm->max_seconds) {
+            R.cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
+            break;
+        }
+        if (R.insertions - R.low_at >= stall_budget(&R)) {
+            R.cnt.stop_reason = ANISTAR_STOP_STALL;
+            break;
+        }
+        if ((steps & 255) == 0 || now - last_report >= 0.25) {
+            last_report = now;
+            if (report(&R, now)) {
+                s = as_fail(ctx, ANISTAR_ECANCELED, "mesher: canceled by the progress callback");
+                break;
+            }
         }
         steps++;
         double p[3];
-        if (rule == 0) {
+        if (rule == JOB_TOPOLOGY) {
+            double d;
+            int found;
+            if ((s = topology_point(&R, v, p, &d, &found)) != ANISTAR_OK) break;
+            if (!found) continue; /* certification names the star if it stays open */
+            if ((s = as_refine_check_point(ss, p, v, NULL, d)) != ANISTAR_OK) break;
+            if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
+            R.cnt.topology++;
+            continue;
+        }
+        if (rule == JOB_RULE1) {
             memcpy(p, f.c, sizeof p);
-            if (is_duplicate(ss, p)) {
-                /* the center is a site already (degenerate input): pick around it */
-                if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
-                if (is_duplicate(ss, p)) continue;
-            }
         } else {
             if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
-            if (is_duplicate(ss, p)) continue;
         }
+        if ((s = as_refine_check_point(ss, p, v, f.g, f.r)) != ANISTAR_OK) break;
         if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
         R.cnt.rule[rule]++;
+        if (rule == JOB_RULE1) R.cnt.cause[cause]++;
     }
     double t2 = now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
     if (s == ANISTAR_OK) {
         R.cnt.t_total = t2 - t0;
+        if (!complete) stop_message(&R);
+        char msg[AS_ERRMSG_SIZE];
+        snprintf(msg, sizeof msg, "%s", ctx->last_error);
         s = as_mesher_output(ss, prm, &R.cnt, complete, out);
+        /* design: a run is complete only when its output passes the final checks
+         * (anistar_mesher_run's contract); a failed check is named in the message */
+        if (s == ANISTAR_OK && complete) {
+            int ok = 0;
+            s = as_mesher_certify(ss, *out, &ok);
+            if (s == ANISTAR_OK && !ok) {
+                complete = 0;
+                R.cnt.stop_reason = ANISTAR_STOP_UNCERTIFIED;
+                (*out)->stats.complete = 0;
+                snprintf(msg, sizeof msg, "%s", ctx->last_error);
+            }
+        }
         if (s == ANISTAR_OK && complete && prm->optimize) s = as_mesher_optimize(ss, prm, out);
         if (s == ANISTAR_OK) {
             double t3 = now_seconds();
-            (*out)->stats.seconds_output = t3 - t2;
-            (*out)->stats.seconds_total = t3 - t0;
-            if (!complete) s = ANISTAR_INCOMPLETE;
+            anistar_mesh_stats *S = &(*out)->stats;
+            S->seconds_output = t3 - t2;
+            S->seconds_total = t3 - t0;
+            S->stop_reason = R.cnt.stop_reason;
+            S->peak_bytes = ctx->peak - bytes0;
+            if (!complete) s = as_fail(ctx, ANISTAR_INCOMPLETE, "%s", msg);
+        } else if (*out) {
+            as_mesh_free(*out);
+            *out = NULL;
         }
     }
+    if (ctl) publish(&R, now_seconds());
     if (ss_out && (s == ANISTAR_OK || s == ANISTAR_INCOMPLETE)) {
         *ss_out = ss;
     } else {
@@ -579,7 +865,6 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
 }
 
 anistar_status as_mesher_run(anistar_context *ctx, const as_surface *surf, const as_field *field,
-                             const as_mesher_params *prm, as_progress_fn progress, void *user,
-                             anistar_mesh **out) {
-    return as_mesher_run_keep(ctx, surf, field, prm, progress, user, out, NULL);
+                             const as_mesher_params *prm, as_run_ctl *ctl, anistar_mesh **out) {
+    return as_mesher_run_keep(ctx, surf, field, prm, ctl, out, NULL);
 }

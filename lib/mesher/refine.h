@@ -28,12 +28,37 @@ void as_queue_free(anistar_context *ctx, as_queue *q);
 
 /*
  * Rule-1 violation of facet f of star v: the largest of r/r0, gamma/gamma0 (largest
- * pairwise distortion of the vertices' metrics, when all three are sites) and, with
- * approx > 0, dist/approx (distance from the facet's centroid to S) among those >= 1;
- * 0 when the facet satisfies rule 1. *err receives surface errors.
+ * pairwise distortion of the vertices' metrics, when all three are sites), with
+ * approx > 0 dist/approx (distance from the facet's centroid to S), and
+ * r/(AS_FEATURE_ALPHA lfs_v) (v's local feature size in M_v, as_starset_lfs), among
+ * those >= 1; 0 when the facet satisfies rule 1. *cause (optional) receives the
+ * AS_CAUSE_* of the largest ratio; *err surface errors (then 0 is returned).
  */
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
-                          const as_rfacet *f, anistar_status *err);
+                          const as_rfacet *f, int *cause, anistar_status *err);
+/* A refinement point closer than AS_NEAR_SITE times its facet's radius (in the star's
+ * metric) to an existing site is a bug trap (as_refine_check_point). */
+#define AS_NEAR_SITE 1e-9
+
+/*
+ * The bug trap in front of every refinement insertion: p, the refinement point of facet
+ * g (NULL: of the topology rule) of star v with radius r in M_v, must not lie within
+ * AS_NEAR_SITE r (in M_v) of an existing site or pole. A surface ball is empty of the
+ * sites of v's star, so a site that close is one v's star never received (a missed
+ * site): inserting p would kill nothing and the facet would come back forever.
+ * Returns OK, or EINTERNAL naming the point, the facet, the star and the site; ENOMEM.
+ */
+anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
+                                     const int32_t g[3], double r);
+
+/*
+ * The up-front estimate (DESIGN.md 4.5) of the run's output vertex count and peak memory
+ * from the metric field and the sizing field alone (estimate.c). OK, or the surface's or
+ * the field's errors, ENOMEM.
+ */
+anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
+                                  double *bytes);
+
 /* Rule-2 violation: rho/rho0 if the radius-edge ratio in M_v exceeds rho0, else 0. */
 double as_rule2_violation(const as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f);

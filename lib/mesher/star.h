@@ -57,6 +57,7 @@ typedef struct as_star {
     as_rfacet *rf;      /* restricted facets, sorted by (g0, g1, g2) */
     int32_t nrf, cap_rf;
     int closed;         /* the restricted facets form one closed fan around v */
+    uint8_t topo_queued;/* the refiner's topology queue holds this star */
     int32_t nv_base;    /* del.nv after the last (re)build: compaction trigger */
     int32_t *itet;      /* the live tets incident to v (after the last update) */
     int32_t nitet, cap_itet;

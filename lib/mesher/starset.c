@@ -235,6 +235,13 @@ static anistar_status apply_diff(as_starset *ss, int32_t v, const as_rfacet *old
     }
     for (int32_t k = 0; k < st->nrf; k++)
         if (st->rf[k].fresh && (s = push_event(ss, v, st->rf[k].g)) != ANISTAR_OK) return s;
+    if (!st->closed && !st->topo_queued) {
+        if (ss->nopen == ss->cap_open &&
+            as_grow(ss->ctx, (void **)&ss->open, &ss->cap_open, ss->nopen + 1, sizeof *ss->open))
+            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (events)");
+        ss->open[ss->nopen++] = v;
+        st->topo_queued = 1;
+    }
     if ((s = as_boxindex_set(ss->ctx, ss->bi, v, st->lo, st->hi)) != ANISTAR_OK) return s;
     return ANISTAR_OK;
 }
@@ -299,6 +306,7 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->inc, ss->cap_inc * sizeof *ss->inc);
     as_free(ctx, ss->ev, ss->cap_ev * sizeof *ss->ev);
     as_free(ctx, ss->newinc, ss->cap_newinc * sizeof *ss->newinc);
+    as_free(ctx, ss->open, ss->cap_open * sizeof *ss->open);
     as_free(ctx, ss->list, ss->cap_list * sizeof *ss->list);
     as_free(ctx, ss->batch, ss->cap_batch * sizeof *ss->batch);
     as_free(ctx, ss->bdist, ss->cap_bdist * sizeof *ss->bdist);
@@ -629,9 +637,26 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
             take = nc;
         }
         for (size_t k = 0; k < take; k++) ss->stamp[ss->batch[k]] = ep;
+        const int was_closed = st->closed;
         if ((s = as_star_insert(&ss->env, st, mf, ss->batch, (int32_t)take, &ss->sc, NULL)) !=
             ANISTAR_OK)
             return s;
+        double glo[3], ghi[3];
+        if (zone_grew(st, mf, ss->sc.old, ss->sc.nold, glo, ghi) || (was_closed && !st->closed)) {
+            /* design: the zone grew (a new facet's dual edge crosses S far away, or the
+             * star opened): the candidates rejected so far were rejected by a smaller
+             * zone. Forget them (a new epoch, the star's own sites stamped again) and
+             * search the whole current zone again. Without this, a site stamped early
+             * stays out of the star while its far facet's surface ball holds it, and
+             * rule 1 inserts that ball's center on the site (seen on the skull at
+             * r0 = 4 when a star was compacted). */
+            ep = next_epoch(ss);
+            for (int32_t k = 0; k < st->del.nv; k++) ss->stamp[st->del.gid[k]] = ep;
+            nc = 0;
+            query = 1;
+            box = NULL;
+            continue;
+        }
         /* the rest stays in the list, in order, for the next round */
         memmove(ss->batch, ss->batch + take, (nc - take) * sizeof *ss->batch);
         memmove(ss->bdist, ss->bdist + take, (nc - take) * sizeof *ss->bdist);
@@ -805,6 +830,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         int32_t v = ss->list[k];
         as_star *sv = ss->stars[v];
         int32_t ch = 0;
+        const int was_closed = sv->closed;
         sv->del.hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
         if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, &ch)) != ANISTAR_OK)
             return s;
@@ -816,7 +842,17 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
          * curved or thin surface a new facet's dual edge can cross S far away, and the
          * sites of its surface ball were never offered to this star. */
         double zb[6];
-        if (zone_grew(sv, &ss->mf[v], ss->sc.old, ss->sc.nold, zb, zb + 3)) {
+        int grew = zone_grew(sv, &ss->mf[v], ss->sc.old, ss->sc.nold, zb, zb + 3);
+        if (!grew && was_closed && !sv->closed) {
+            /* design: a closed star that opens (a facet lost) has a zone no longer bounded
+             * by surface balls: the union of the circumballs of its tets around v, which
+             * holds sites never offered to it while it was closed. Offer it that zone
+             * (searched by growing balls, as any open star). */
+            memcpy(zb, sv->lo, sizeof sv->lo);
+            memcpy(zb + 3, sv->hi, sizeof sv->hi);
+            grew = 1;
+        }
+        if (grew) {
             if ((s = push_i32(ss->ctx, &ss->regrow, &ss->cap_regrow, ss->nregrow, v)) !=
                 ANISTAR_OK)
                 return s;
@@ -920,3 +956,11 @@ anistar_status as_starset_grow_star(as_starset *ss, as_star *st, const as_metric
 }
 
 uint32_t as_starset_next_epoch(as_starset *ss) { return next_epoch(ss); }
+
+anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lfs) {
+    (void)ss;
+    (void)v;
+    (void)need;
+    *lfs = INFINITY;
+    return ANISTAR_OK;
+}

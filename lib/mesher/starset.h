@@ -69,6 +69,8 @@ typedef struct as_starset {
     size_t nev, cap_ev;
     uint64_t *newinc;        /* keys that became inconsistent */
     size_t nnewinc, cap_newinc;
+    int32_t *open;           /* stars found not a closed fan (topology rule's feed) */
+    size_t nopen, cap_open;
 
     /* scratch */
     as_star_scratch sc;
@@ -146,6 +148,17 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
  */
 anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
                                    as_star **out);
+
+/*
+ * v's local feature size in M_v (paper 2.3: the lfs part of the sizing field): the M_v
+ * distance from v to the nearest medial point of the surface (ss->feat); +inf when there
+ * is none. Only needed to decide "r >= AS_FEATURE_ALPHA lfs": when a cheap lower bound
+ * already exceeds need, *lfs receives that bound; otherwise the exact value, cached.
+ */
+anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lfs);
+
+/* Facets of a star stay below this fraction of its center's local feature size. */
+#define AS_FEATURE_ALPHA 0.5
 
 /* Evaluate the metric at p into a frame. EINVAL when the field fails or M is not SPD. */
 anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf);

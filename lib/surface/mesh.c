@@ -65,6 +65,7 @@ typedef struct as_mesh_surface {
     double *vnorm;  /* 3 nv: angle-weighted vertex normals */
     int32_t *vcomp; /* nv: connected component */
     size_t ncomp;
+    long long *ceuler; /* ncomp: Euler characteristic of each component */
     size_t nv_in;   /* input vertices */
     int32_t *vmap;  /* nv_in: input vertex -> vertex or -1 (unused); NULL: identity */
     as_bvh *bvh;
@@ -112,6 +113,7 @@ static void ms_free(as_mesh_surface *ms) {
     as_free(ctx, ms->vjet, ms->nv * VJ * sizeof(double));
     as_free(ctx, ms->vnorm, ms->nv * 3 * sizeof(double));
     as_free(ctx, ms->vcomp, ms->nv * sizeof(int32_t));
+    as_free(ctx, ms->ceuler, ms->ncomp * sizeof(long long));
     as_free(ctx, ms->vmap, ms->nv_in * sizeof(int32_t));
     as_bvh_free(ctx, ms->bvh);
     as_kdtree_free(ctx, ms->kd);
@@ -261,6 +263,8 @@ void as_mesh_surface_info(const as_surface *s, as_mesh_info *info) {
     info->nv_in = ms->nv_in;
     info->vmap = ms->vmap;
     info->ncomponents = ms->ncomp;
+    info->vcomp = ms->vcomp;
+    info->ceuler = ms->ceuler;
     info->spacing = ms->spacing;
 }
 
@@ -715,6 +719,13 @@ anistar_status as_mesh_surface_create(anistar_context *ctx, const char *name, co
     if (!st) st = as_kdtree_build(ctx, ms->xyz, NULL, ms->nv, &ms->kd);
     if (!st) {
         components(ms);
+        /* design: closed 2-manifold, so E = 3F/2 per component and chi = V - F/2 */
+        ms->ceuler = as_alloc_array(ctx, ms->ncomp, sizeof(long long));
+        if (!ms->ceuler) goto nomem;
+        memset(ms->ceuler, 0, ms->ncomp * sizeof(long long));
+        for (size_t v = 0; v < ms->nv; v++) ms->ceuler[ms->vcomp[v]] += 2;
+        for (size_t t = 0; t < nt; t++) ms->ceuler[ms->vcomp[ot[3 * t]]] -= 1;
+        for (size_t k = 0; k < ms->ncomp; k++) ms->ceuler[k] /= 2;
         st = orient_nested(ctx, ms);
     }
     if (st) goto fail;

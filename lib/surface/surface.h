@@ -310,6 +310,9 @@ typedef struct as_mesh_info {
     size_t nv_in;        /* vertices of the input */
     const int32_t *vmap; /* nv_in: input vertex -> vertex or -1; NULL when the identity */
     size_t ncomponents;
+    const int32_t *vcomp;    /* nv: connected component of each vertex (the component ids
+                                of the surface's sample) */
+    const long long *ceuler; /* ncomponents: Euler characteristic of each component */
     double spacing;      /* mean edge length */
 } as_mesh_info;
 #define AS_MESH_VJET 11

@@ -7,17 +7,26 @@
  *   anistar mesh SURFACE [options] -o OUT [-o OUT2 ...]
  *   anistar --help | --version
  *
- * Exit status: 0 done; 1 error (one line on stderr); 2 usage error (one line on stderr);
- * 3 (mesh) stopped at a limit: output written, incomplete.
+ * Exit status: 0 done (mesh: a certified mesh); 1 error (one line on stderr); 2 usage
+ * error (one line on stderr); 3 (mesh) stopped before a certified mesh (a limit, a stall,
+ * SIGINT/SIGTERM, a failed final check): every output written with the consistent facets,
+ * one line on stderr saying why. docs/cli.md "Exit status" says what each guarantees.
+ *
+ * Unlike the library, the tool has process-wide state: the mesher that a SIGINT or SIGTERM
+ * handler stops (set only while anistar_mesher_run runs).
  */
 #include "anistar.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 enum { EXIT_OK = 0, EXIT_ERROR = 1, EXIT_USAGE = 2, EXIT_INCOMPLETE = 3 };
 
@@ -506,6 +515,7 @@ static const struct mesh_param {
     {"--max-seconds", "max_seconds", ANISTAR_PARAM_MAX_SECONDS, 0},
     {"--seed", "seed", ANISTAR_PARAM_SEED, 1},
     {"--pick-tries", "pick_tries", ANISTAR_PARAM_PICK_TRIES, 1},
+    {"--max-stall", "max_stall", ANISTAR_PARAM_MAX_STALL, 1},
 };
 #define NMESH_PARAMS (sizeof mesh_params / sizeof mesh_params[0])
 #define MAX_OUTPUTS 16
@@ -530,20 +540,161 @@ static int mesh_output_ok(const char *path) {
     return 0;
 }
 
-/* Progress on stderr: one line rewritten with \r, shown once a run passes one second. */
+/*
+ * Check, before anything is meshed, that the output `path` (of option `opt`) can be
+ * written. Returns 0, or -1 after one line naming the path and the reason.
+ * design: create it exclusively (O_EXCL: it did not exist, so remove it again); if it
+ * exists, open it for appending, which never truncates it.
+ */
+static int output_check(const char *opt, const char *path) {
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL, 0666);
+    if (fd >= 0) {
+        close(fd);
+        remove(path);
+        return 0;
+    }
+    if (errno == EEXIST) fd = open(path, O_WRONLY | O_APPEND);
+    if (fd >= 0) {
+        close(fd);
+        return 0;
+    }
+    say("%s '%s': cannot open for writing: %s", opt, path, strerror(errno));
+    return -1;
+}
+
+/* ---- SIGINT / SIGTERM during the run ------------------------------------------------ */
+
+/*
+ * design: the handlers live only while anistar_mesher_run runs. The handler records the
+ * signal, puts both signals back to their default action (a second one kills the
+ * process) and asks the mesher to stop, which is async-signal-safe (a lock-free atomic
+ * store): the run ends after the insertion in progress with ANISTAR_INCOMPLETE and the
+ * partial mesh, as at --max-seconds. A signal ignored when the tool started stays ignored.
+ */
+_Static_assert(ATOMIC_POINTER_LOCK_FREE == 2, "the signal handler needs a lock-free pointer");
+static _Atomic(anistar_mesher *) stop_target; /* the running mesher, or NULL */
+static volatile sig_atomic_t stop_signal;      /* the signal that stopped it, or 0 */
+static const int stop_signals[2] = {SIGINT, SIGTERM};
+static struct sigaction stop_saved[2]; /* the actions before the run */
+static int stop_installed[2];          /* 1: our handler replaced stop_saved[i] */
+static struct sigaction stop_default;  /* SIG_DFL, prepared outside the handler */
+
+static void on_stop_signal(int sig) {
+    stop_signal = sig;
+    for (int i = 0; i < 2; i++)
+        if (stop_installed[i]) sigaction(stop_signals[i], &stop_default, NULL);
+    anistar_mesher_stop(atomic_load(&stop_target));
+}
+
+static void stop_handlers_install(anistar_mesher *m) {
+    memset(&stop_default, 0, sizeof stop_default);
+    stop_default.sa_handler = SIG_DFL;
+    sigemptyset(&stop_default.sa_mask);
+    stop_signal = 0;
+    atomic_store(&stop_target, m);
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    for (int i = 0; i < 2; i++) sigaddset(&sa.sa_mask, stop_signals[i]);
+    sa.sa_flags = SA_RESETHAND | SA_RESTART;
+    for (int i = 0; i < 2; i++) {
+        stop_installed[i] = 0;
+        if (sigaction(stop_signals[i], NULL, &stop_saved[i]) != 0) continue;
+        if (!(stop_saved[i].sa_flags & SA_SIGINFO) && stop_saved[i].sa_handler == SIG_IGN)
+            continue;
+        stop_installed[i] = 1; /* before the handler can run */
+        if (sigaction(stop_signals[i], &sa, NULL) != 0) stop_installed[i] = 0;
+    }
+}
+
+static void stop_handlers_remove(void) {
+    for (int i = 0; i < 2; i++)
+        if (stop_installed[i]) sigaction(stop_signals[i], &stop_saved[i], NULL);
+    for (int i = 0; i < 2; i++) stop_installed[i] = 0;
+    atomic_store(&stop_target, NULL);
+}
+
+static const char *signal_name(int sig) {
+    return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal";
+}
+
+/* ---- progress ---------------------------------------------------------------------- */
+
+/*
+ * Progress on stderr (not with --quiet), from the first second of a run on:
+ *   a terminal: one line rewritten with \r at most every PROGRESS_TTY_STEP seconds, ended
+ *     with a newline when the run returns;
+ *   anything else (a file, a pipe): one newline-terminated line at 1 s, then every
+ *     PROGRESS_LOG_STEP seconds; never a \r.
+ * A line: "anistar: mesh: V[ of ~E] vertices, I inconsistent facets, S s[, ETA T s]
+ * [, stalled N/B insertions]" (progress_format).
+ */
+#define PROGRESS_FIRST 1.0
+#define PROGRESS_TTY_STEP 0.2
+#define PROGRESS_LOG_STEP 10.0
+
 typedef struct progress_state {
-    int shown;
+    anistar_mesher *mesher; /* for anistar_mesher_get_progress */
+    int tty;                /* stderr is a terminal */
+    int shown;              /* a line is on screen (tty: not ended yet) */
+    double next;            /* seconds of the next line */
+    size_t width;           /* length of the last tty line (to blank its tail) */
 } progress_state;
 
+/* Append printf-style text to buf (capacity cap, *n characters so far), truncating. */
+static void appendf(char *buf, size_t cap, size_t *n, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    int k = *n < cap ? vsnprintf(buf + *n, cap - *n, fmt, ap) : 0;
+    va_end(ap);
+    if (k > 0) *n = *n + (size_t)k < cap ? *n + (size_t)k : cap - 1;
+}
+
+/* The progress line (without "\r" or "\n") into buf. */
+static void progress_format(char *buf, size_t cap, const anistar_progress *p) {
+    size_t n = 0;
+    buf[0] = '\0';
+    appendf(buf, cap, &n, "anistar: mesh: %zu", p->vertices);
+    if (p->estimate_vertices > 0) appendf(buf, cap, &n, " of ~%.0f", p->estimate_vertices);
+    appendf(buf, cap, &n, " vertices, %zu inconsistent facets, %.1f s", p->inconsistent,
+            p->seconds);
+    if (p->estimate_vertices > 0 && p->eta_seconds >= 0.5)
+        appendf(buf, cap, &n, ", ETA %.0f s", p->eta_seconds);
+    if (p->max_stall > 0 && p->stalled > p->max_stall / 4)
+        appendf(buf, cap, &n, ", stalled %llu/%llu insertions", (unsigned long long)p->stalled,
+                (unsigned long long)p->max_stall);
+}
+
 static int mesh_progress(size_t vertices, size_t inconsistent, double seconds, void *user) {
-    progress_state *p = user;
-    if (seconds < 1.0) return 0;
-    fprintf(stderr, "\ranistar: mesh: %zu vertices, %zu inconsistent facets, %.1f s   ",
-            vertices, inconsistent, seconds);
+    progress_state *ps = user;
+    if (seconds < ps->next) return 0;
+    anistar_progress p;
+    if (anistar_mesher_get_progress(ps->mesher, &p) != ANISTAR_OK) {
+        memset(&p, 0, sizeof p);
+        p.eta_seconds = -1;
+    }
+    p.vertices = vertices; /* the callback's own values are the current ones */
+    p.inconsistent = inconsistent;
+    p.seconds = seconds;
+    char line[256];
+    progress_format(line, sizeof line, &p);
+    if (ps->tty) {
+        size_t len = strlen(line);
+        int pad = ps->width > len ? (int)(ps->width - len) : 0;
+        fprintf(stderr, "\r%s%*s", line, pad, "");
+        ps->width = len;
+        ps->next = seconds + PROGRESS_TTY_STEP;
+        ps->shown = 1;
+    } else {
+        fprintf(stderr, "%s\n", line);
+        while (ps->next <= seconds) ps->next += PROGRESS_LOG_STEP;
+    }
     fflush(stderr);
-    p->shown = 1;
     return 0;
 }
+
+/* ---- --stats ----------------------------------------------------------------------- */
 
 /* Write the --stats JSON. Returns 0, or -1 if the file cannot be written. */
 static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
@@ -556,18 +707,29 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             st->vertices, st->facets, st->inconsistent_facets);
     fprintf(f, "  \"poles\": %zu,\n  \"euler_characteristic\": %lld,\n", st->poles,
             st->euler_characteristic);
-    fprintf(f, "  \"closed_manifold\": %s,\n  \"complete\": %s,\n",
-            st->closed_manifold ? "true" : "false", complete ? "true" : "false");
-    fprintf(f, "  \"seconds\": {\"total\": %.6g, \"init\": %.6g, \"refine\": %.6g, "
+    fprintf(f, "  \"closed_manifold\": %s,\n  \"components\": %zu,\n  \"complete\": %s,\n",
+            st->closed_manifold ? "true" : "false", st->components,
+            complete ? "true" : "false");
+    fprintf(f, "  \"stop_reason\": ");
+    json_string_to(f, anistar_stop_reason_name(st->stop_reason));
+    fprintf(f, ",\n  \"seconds\": {\"total\": %.6g, \"init\": %.6g, \"refine\": %.6g, "
                "\"output\": %.6g, \"optimize\": %.6g},\n",
             st->seconds_total, st->seconds_init, st->seconds_refine, st->seconds_output,
             st->seconds_optimize);
     fprintf(f, "  \"insertions\": {\"initial\": %llu, \"rule1\": %llu, \"rule2\": %llu, "
-               "\"rule3\": %llu},\n",
+               "\"rule3\": %llu, \"topology\": %llu,\n"
+               "    \"rule1_causes\": {\"size\": %llu, \"distortion\": %llu, "
+               "\"approximation\": %llu, \"feature\": %llu}},\n",
             (unsigned long long)st->insertions_initial,
             (unsigned long long)st->insertions_rule[0],
             (unsigned long long)st->insertions_rule[1],
-            (unsigned long long)st->insertions_rule[2]);
+            (unsigned long long)st->insertions_rule[2],
+            (unsigned long long)st->insertions_topology,
+            (unsigned long long)st->insertions_size,
+            (unsigned long long)st->insertions_distortion,
+            (unsigned long long)st->insertions_approx,
+            (unsigned long long)st->insertions_feature);
+    fprintf(f, "  \"stall_max\": %llu,\n", (unsigned long long)st->stall_max);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
             (unsigned long long)st->pick_valid_tries,
             (unsigned long long)st->pick_valid_failures);
@@ -588,7 +750,11 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             st->seconds_optimize, st->rho2_mean_before);
     for (int i = 0; i < ANISTAR_HISTOGRAM_BINS; i++)
         fprintf(f, "%s%llu", i ? ", " : "", (unsigned long long)st->histogram_before[i]);
-    fprintf(f, "]},\n  \"parameters\": {\"metric\": ");
+    fprintf(f, "]},\n");
+    fprintf(f, "  \"estimate\": {\"vertices\": %.17g, \"bytes\": %.17g},\n",
+            st->estimate_vertices, st->estimate_bytes);
+    fprintf(f, "  \"peak_bytes\": %zu,\n", st->peak_bytes);
+    fprintf(f, "  \"parameters\": {\"metric\": ");
     json_string_to(f, metric);
     for (size_t i = 0; i < NMESH_PARAMS; i++)
         fprintf(f, ", \"%s\": %.17g", mesh_params[i].json, values[i]);
@@ -598,6 +764,8 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     if (fclose(f) != 0) bad = 1;
     return bad ? -1 : 0;
 }
+
+/* ---- the command ------------------------------------------------------------------- */
 
 static int cmd_mesh(int argc, char **argv) {
     surface_opts so;
@@ -695,6 +863,16 @@ static int cmd_mesh(int argc, char **argv) {
         rc = EXIT_USAGE;
         goto done;
     }
+    /* every output must be writable before anything is built or meshed */
+    for (int j = 0; j < nouts; j++)
+        if (output_check("-o", outs[j])) {
+            rc = EXIT_ERROR;
+            goto done;
+        }
+    if ((sol && output_check("--sol", sol)) || (stats && output_check("--stats", stats))) {
+        rc = EXIT_ERROR;
+        goto done;
+    }
     rc = surface_make(ctx, &so, &s);
     if (rc) goto done;
     if (anistar_metric_from_spec(ctx, s, metric, &m) || anistar_mesher_new(ctx, s, m, &mr)) {
@@ -719,15 +897,26 @@ static int cmd_mesh(int argc, char **argv) {
         rc = EXIT_ERROR;
         goto done;
     }
-    progress_state prog = {0};
+    progress_state prog;
+    memset(&prog, 0, sizeof prog);
+    prog.mesher = mr;
+    prog.tty = isatty(STDERR_FILENO);
+    prog.next = PROGRESS_FIRST;
     if (!quiet) anistar_mesher_set_progress(mr, mesh_progress, &prog);
+    stop_handlers_install(mr);
     anistar_status st = anistar_mesher_run(mr, &mesh);
+    stop_handlers_remove();
+    int sig = stop_signal;
     if (prog.shown) fputc('\n', stderr);
     if (st != ANISTAR_OK && st != ANISTAR_INCOMPLETE) {
         say("%s", anistar_last_error(ctx));
         rc = EXIT_ERROR;
         goto done;
     }
+    /* the reason of an INCOMPLETE run, before the writes reuse ctx */
+    char reason[512];
+    snprintf(reason, sizeof reason, "%s",
+             st == ANISTAR_INCOMPLETE ? anistar_last_error(ctx) : "");
     for (int j = 0; j < nouts; j++)
         if (anistar_mesh_write(ctx, mesh, outs[j])) {
             say("%s", anistar_last_error(ctx));
@@ -747,10 +936,16 @@ static int cmd_mesh(int argc, char **argv) {
         goto done;
     }
     if (st == ANISTAR_INCOMPLETE) {
-        if (!quiet)
-            fprintf(stderr, "anistar: stopped at a limit: %zu vertices, %zu facets written, "
-                            "%zu inconsistent facets left out\n",
-                    ms.vertices, ms.facets, ms.inconsistent_facets);
+        /* the run's result: printed even with --quiet (which silences progress only) */
+        if (sig && ms.stop_reason == ANISTAR_STOP_REQUESTED)
+            say("stopped by %s: %zu vertices, %zu facets written, %zu inconsistent facets left "
+                "out",
+                signal_name(sig), ms.vertices, ms.facets, ms.inconsistent_facets);
+        else
+            say("incomplete (%s): %zu vertices, %zu facets written, %zu inconsistent facets "
+                "left out%s%s",
+                anistar_stop_reason_name(ms.stop_reason), ms.vertices, ms.facets,
+                ms.inconsistent_facets, reason[0] ? "; " : "", reason);
         rc = EXIT_INCOMPLETE;
     }
 done:
@@ -774,8 +969,9 @@ static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
-             "                 [--seed N] [--pick-tries N] [--optimize] [--quiet]\n"
-             "                 [--sol FILE.sol] [--stats FILE.json] -o OUT [-o OUT2 ...]",
+             "                 [--max-stall N] [--seed N] [--pick-tries N] [--optimize]\n"
+             "                 [--quiet] [--sol FILE.sol] [--stats FILE.json]\n"
+             "                 -o OUT [-o OUT2 ...]",
      cmd_mesh},
     {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]\n"
                "                 [--size WxH] [--edges on|off] [--up x|y|z] [--range MIN,MAX]\n"
@@ -796,7 +992,13 @@ static void help(void) {
            "curvature) and writes every -o OUT by extension (.off .obj .ply .stl .mesh .vtk\n"
            ".vtu); --sol writes the vertex tensors (Medit), --stats a JSON of statistics.\n"
            "Defaults: r0 0.1, gamma0 1.5, rho0 3, beta 2.5, delta 0.3, approx 0 (off),\n"
-           "max-vertices 0 and max-seconds 0 (no limit), seed 0, pick-tries 60.\n\n"
+           "max-vertices 1000000 (0: the hard limit 2000000; a run whose up-front estimate\n"
+           "exceeds it is refused, status 1), max-seconds 0 (no limit), max-stall 0\n"
+           "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"
+           "inconsistent-facet count), seed 0, pick-tries 60.\n"
+           "Progress goes to stderr (--quiet: none); SIGINT or SIGTERM stops the run after\n"
+           "the insertion in progress and writes every output, as a limit does (status 3);\n"
+           "a second signal kills.\n\n"
            "render draws a triangle mesh to a PNG image, each triangle coloured by --color:\n"
            "quality (radius-edge ratio, the default), anisotropy (sqrt(lmax/lmin) of the\n"
            "vertex tensors of a PLY or of --sol, else the triangle's aspect ratio) or none;\n"
@@ -820,8 +1022,10 @@ static void help(void) {
     const char *name, *desc;
     for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)
         printf("  %-13s %s\n", name, desc);
-    printf("\nexit status: 0 done, 1 error, 2 usage error, 3 (mesh) stopped at a limit\n"
-           "(output written, incomplete). See docs/cli.md.\n");
+    printf("\nexit status: 0 done (mesh: a certified mesh), 1 error, 2 usage error, 3 (mesh)\n"
+           "stopped before a certified mesh by a limit, a stall, a signal or a failed final\n"
+           "check (every output written with the consistent facets; one line on stderr says\n"
+           "why). See docs/cli.md.\n");
 }
 
 int main(int argc, char **argv) {

@@ -210,10 +210,12 @@ typedef enum anistar_param {
                                    their facets' surface centers while every guarantee
                                    holds and quality improves); 0 or 1 (default 0) */
     ANISTAR_PARAM_MAX_STALL     /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
-                                   ANISTAR_STOP_STALL) when this many insertions pass
-                                   without the inconsistent-facet count reaching a new
-                                   low; integer in [0, 2^53], 0 = automatic (default: the
-                                   larger of 50000 and 2 x the vertices so far) */
+                                   ANISTAR_STOP_STALL) after this many consistency (rule 3)
+                                   insertions in a row without the inconsistent-facet count
+                                   they face reaching a new low (rule 3 runs when no other
+                                   rule applies: in a converging run that count falls to 0);
+                                   integer in [0, 2^53], 0 = automatic (default: the larger
+                                   of 50000 and 2 x the vertices at the last new low) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */
@@ -248,8 +250,8 @@ typedef struct anistar_progress {
                                  metric and the sizing field (0 until it is made) */
     double estimate_bytes;    /* ... and of the run's peak memory */
     double eta_seconds;       /* estimated seconds left (< 0: unknown) */
-    uint64_t stalled;         /* insertions since the inconsistent-facet count last
-                                 reached a new low */
+    uint64_t stalled;         /* consistency (rule 3) insertions since the inconsistent-
+                                 facet count they face last reached a new low */
     uint64_t max_stall;       /* the stall budget in force (ANISTAR_PARAM_MAX_STALL) */
 } anistar_progress;
 
@@ -261,7 +263,9 @@ ANISTAR_API anistar_status anistar_mesher_get_progress(const anistar_mesher *m,
 
 /* Ask the current run of m to stop after the insertion in progress: anistar_mesher_run
  * then returns ANISTAR_INCOMPLETE with the mesh of the consistent facets so far (stop
- * reason ANISTAR_STOP_REQUESTED), as at a limit. Async-signal-safe and thread-safe: it
+ * reason ANISTAR_STOP_REQUESTED), as at a limit. During the vertex optimisation it ends
+ * the optimisation between two moves: the mesh returned is then the certified mesh
+ * optimised so far, still with ANISTAR_INCOMPLETE. Async-signal-safe and thread-safe: it
  * only sets a lock-free atomic flag, so a SIGINT handler or another thread may call it.
  * A call made while no run is going on makes the next run stop at its first check; each
  * run clears the flag when it ends. */
@@ -361,7 +365,18 @@ typedef struct anistar_mesh_stats {
     uint64_t histogram_before[ANISTAR_HISTOGRAM_BINS];
     /* how the run ended and what it cost */
     int stop_reason;              /* anistar_stop_reason */
-    size_t components;            /* connected components of the output */
+    size_t components;            /* connected components of the output (counted by the
+                                     final checks of a complete run; 0 otherwise) */
+    size_t components_found;      /* implicit and image surfaces: components of the output
+                                     that the surface sample missed (refinement found
+                                     them), and ... */
+    size_t components_split;      /* ... sample components that came out as several (the
+                                     sampler's grid merges components closer than a cell),
+                                     and ... */
+    size_t components_joined;     /* ... sample components joined in one (a neck thinner
+                                     than a cell); the final checks prove the mesh against
+                                     S itself (every edge hugs S), the grid is only a
+                                     sample */
     double estimate_vertices;     /* the up-front estimate (anistar_progress) */
     double estimate_bytes;
     size_t peak_bytes;            /* the most bytes the run held through the context's
@@ -376,8 +391,12 @@ typedef struct anistar_mesh_stats {
     uint64_t insertions_approx;   /* rule 1: distance to S > approx */
     uint64_t insertions_feature;  /* rule 1: circumradius >= a fraction of the local
                                      feature size (the sizing field's lfs part) */
-    uint64_t stall_max;           /* the longest stretch of insertions without a new low of
-                                     the inconsistent-facet count */
+    uint64_t stall_max;           /* the longest stretch of consistency (rule 3) insertions
+                                     without a new low of the inconsistent-facet count */
+    double feature_alpha;         /* facets were kept below this fraction of the local
+                                     feature size: 1, halved each time the final checks
+                                     found the topology wrong (down to 1/8) */
+    uint64_t feature_halvings;    /* how many times that happened */
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);
@@ -702,8 +721,9 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
  * Options follow the name (or the expression) after commas at parenthesis depth 0:
  * "hessian:max(x,y)^2,eps=0.5". Defaults: curvature eps = 1/R (R the bounding radius),
  * power 1; shock lambda 0.6, phi 1; gradient phi 1; hessian power 0.5 and eps = 1e-3 x
- * the largest tangential |H| eigenvalue over the surface sample; e_n (F's eigenvalue
- * along the normal) = the largest tangential eigenvalue of F over a sample of S.
+ * the largest tangential |H| eigenvalue over the surface sample (ANISTAR_EINVAL naming a
+ * sample point when that is 0: give eps); e_n (F's eigenvalue along the normal) = the
+ * largest tangential eigenvalue of F over a sample of S.
  * ANISTAR_EINVAL for an unknown name or option or a bad value, ANISTAR_EFORMAT for a
  * malformed expression or unbalanced parentheses; computing defaults samples S and may
  * return ANISTAR_ENOSURFACE.
@@ -726,7 +746,8 @@ ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
  * a surface: the errors of anistar_metric_from_spec that do not depend on the surface. */
 ANISTAR_API anistar_status anistar_metric_spec_check(anistar_context *ctx, const char *spec);
 
-/* A constant tensor m (must be finite and positive definite). s may be NULL. */
+/* A constant tensor m: finite and positive definite with condition number <= 1e24, else
+ * ANISTAR_EINVAL giving the six values (never repaired). s may be NULL. */
 ANISTAR_API anistar_status anistar_metric_uniform(anistar_context *ctx, const anistar_surface *s,
                                                   const double m[6], anistar_metric **out);
 
@@ -738,9 +759,10 @@ ANISTAR_API anistar_status anistar_metric_from_callback(anistar_context *ctx,
 
 /* The tensor t at p, a point of S. Off S the field is evaluated at p as given (with the
  * normal and curvatures of the level set of f through p): project first
- * (anistar_surface_project) for the value on S. ANISTAR_EINVAL, with a message naming p,
- * when f is not finite at p or a custom callback fails or returns a non-finite or
- * non-positive-definite tensor. */
+ * (anistar_surface_project) for the value on S. ANISTAR_EINVAL, with a message naming p
+ * (and the six values of a tensor at fault), when f is not finite at p or a custom
+ * callback fails or returns a tensor that is not finite and positive definite with
+ * condition number <= 1e24: never repaired. */
 ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const double p[3],
                                                double t[6]);
 

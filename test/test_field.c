@@ -2,7 +2,10 @@
  * test_field.c — metric fields (lib/surface/field.c): curvature, shock and Hessian
  * tensors against hand computations, SPD and finite everywhere for every kind, the
  * anisotropy clamp, umbilic and singular points, custom callbacks, SPEC parsing errors,
- * allocation failures.
+ * allocation failures; and the rule that a metric that is not positive definite on S is
+ * an error naming the point, never a substitute (a zero Hessian without eps, callbacks
+ * and .sol tensors that are not finite and SPD, eigenvalues that overflow), through the
+ * internal API and through the public one up to a mesher run.
  */
 #include "test_util.h"
 
@@ -12,7 +15,9 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static const double PI = 3.14159265358979323846;
 
@@ -54,6 +59,15 @@ static double tensor_err(const double a[6], const double b[6]) {
         den = fmax(den, fabs(b[i]));
     }
     return num / den;
+}
+
+/* The point named by an error message: the last "at (X, Y, Z)" in msg. Fails the test when
+ * there is none. */
+static void msg_point(const char *msg, double p[3]) {
+    const char *at = NULL;
+    for (const char *c = strstr(msg, "at ("); c; c = strstr(c + 1, "at (")) at = c;
+    if (!at || sscanf(at, "at (%lf, %lf, %lf)", &p[0], &p[1], &p[2]) != 3)
+        fail_msg("no point in '%s'", msg);
 }
 
 static as_surface *builtin(anistar_context *ctx, const char *spec) {
@@ -331,11 +345,23 @@ static void test_anisotropy_clamp(void **state) {
     assert_true(fabs(w[2] / w[0] - 1e12) < 1e12 * 1e-9 && fabs(w[2] - 4) < 1e-12);
     as_field_free(f);
     /* a uniform tensor too */
-    double thin[6] = {1, 0, 0, 1e-30, 0, 1};
+    double thin[6] = {1, 0, 0, 1e-20, 0, 1};
     assert_int_equal(as_field_uniform(ctx, NULL, thin, &f), ANISTAR_OK);
     assert_int_equal(as_field_eval(ctx, f, p, m), ANISTAR_OK);
     assert_true(fabs(m[3] - 1e-12) < 1e-20);
     as_field_free(f);
+    /* the clamp never makes a tensor the mesher refuses acceptable: a condition number
+     * of 1e30 (> 1e24, as_metric_frame_init's bound) is an error, not clamped */
+    double thinner[6] = {1, 0, 0, 1e-30, 0, 1};
+    f = (as_field *)1;
+    assert_int_equal(as_field_uniform(ctx, NULL, thinner, &f), ANISTAR_EINVAL);
+    assert_null(f);
+    assert_non_null(strstr(anistar_last_error(ctx), "(1 0 0 1.0000000000000001e-30 0 1)"));
+    /* untouched within the bound: bit for bit */
+    double ok[6] = {2, 0.5, 0.25, 3, 0.125, 4}, c[6];
+    memcpy(c, ok, sizeof c);
+    assert_int_equal(as_field_check_tensor(c), 0);
+    assert_memory_equal(c, ok, sizeof c);
     as_surface_free(s);
     anistar_context_free(ctx);
 }
@@ -385,25 +411,62 @@ static int bad_fn(const double p[3], const double n[3], double m[6], void *user)
     if (mode == 0) t[3] = -1;           /* indefinite */
     if (mode == 1) t[1] = NAN;          /* not finite */
     if (mode == 3) t[1] = 2;            /* indefinite through the off-diagonal */
+    if (mode == 4) t[5] = -1;           /* diag(1, 1, -1) */
+    if (mode == 5) t[5] = INFINITY;     /* not finite */
+    if (mode == 6) {                    /* diag(1, 2, 3) written as the first six entries of
+                                           a row-major 3x3 matrix: 1 0 0 0 2 0 — looks like a
+                                           tensor, is singular (m22 = m33 = 0) */
+        double r[6] = {1, 0, 0, 0, 2, 0};
+        memcpy(t, r, sizeof r);
+    }
+    if (mode == 7) t[3] = 1e-30; /* positive definite, condition number 1e30 > 1e24 */
+    if (mode == 8) memset(t, 0, sizeof t); /* left unfilled */
     memcpy(m, t, sizeof t);
     return mode == 2; /* failure */
 }
 
+/* A custom callback's tensor is checked with the mesher's own test (as_metric_frame_init)
+ * before any clamp; an invalid one is EINVAL naming the point and the six values. */
 static void test_custom_errors(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
     as_surface *s = builtin(ctx, "sphere");
     double p[3] = {0.6, 0, 0.8}, m[6];
-    const char *msgs[] = {"not positive definite", "non-finite", "callback failed",
-                          "not positive definite"};
-    for (int mode = 0; mode < 4; mode++) {
+    const struct {
+        const char *msg, *values;
+    } want[] = {
+        {"not positive definite", "(1 0 0 -1 0 1)"},
+        {"non-finite", "(1 nan 0 1 0 1)"},
+        {"callback failed", NULL},
+        {"not positive definite", "(1 2 0 1 0 1)"},
+        {"not positive definite", "(1 0 0 1 0 -1)"},
+        {"non-finite", "(1 0 0 1 0 inf)"},
+        {"not positive definite", "(1 0 0 0 2 0)"},
+        {"not positive definite", "(1 0 0 1.0000000000000001e-30 0 1)"},
+        {"not positive definite", "(0 0 0 0 0 0)"},
+    };
+    for (int mode = 0; mode < (int)(sizeof want / sizeof want[0]); mode++) {
         as_field *f;
         assert_int_equal(as_field_custom(ctx, s, bad_fn, &mode, &f), ANISTAR_OK);
+        for (int i = 0; i < 6; i++) m[i] = 42;
         assert_int_equal(as_field_eval(ctx, f, p, m), ANISTAR_EINVAL);
-        assert_non_null(strstr(anistar_last_error(ctx), msgs[mode]));
-        assert_non_null(strstr(anistar_last_error(ctx), "(0.59999999999999998, 0, "));
+        const char *e = anistar_last_error(ctx);
+        if (!strstr(e, want[mode].msg) ||
+            !strstr(e, "at (0.59999999999999998, 0, 0.80000000000000004)") ||
+            (want[mode].values && !strstr(e, want[mode].values)))
+            fail_msg("mode %d: '%s'", mode, e);
+        for (int i = 0; i < 6; i++) assert_true(m[i] == 42); /* nothing handed out */
         as_field_free(f);
     }
+    /* through the public API: the same status and message */
+    int mode = 4;
+    anistar_metric *pm;
+    assert_int_equal(anistar_metric_from_callback(ctx, s, bad_fn, &mode,
+                                                  &pm),
+                     ANISTAR_OK);
+    assert_int_equal(anistar_metric_eval(pm, p, m), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "not positive definite (1 0 0 1 0 -1)"));
+    anistar_metric_free(pm);
     /* NaN in a scalar field or in f: an error naming the point */
     as_field *f = field(ctx, s, "gradient:sqrt(x),en=1");
     double q[3] = {-0.6, 0, 0.8};
@@ -411,6 +474,239 @@ static void test_custom_errors(void **state) {
     assert_non_null(strstr(anistar_last_error(ctx), "(-0.59999999999999998, 0, "));
     as_field_free(f);
     as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* ---- no silent substitutes for built-in fields --------------------------------------------- */
+
+/* hessian of a linear E: no size to derive without eps (EINVAL naming a point of S); with
+ * eps the documented clamp makes it the uniform metric eps^(2 power) I. */
+static void test_hessian_zero(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s = builtin(ctx, "sphere");
+    const char *bad[] = {"hessian:x+2*y", "hessian:x+2*y,en=2", "hessian:x+2*y,power=1",
+                         "hessian:3"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        as_field *f = (as_field *)1;
+        assert_int_equal(as_field_from_spec(ctx, s, bad[i], &f), ANISTAR_EINVAL);
+        assert_null(f);
+        const char *e = anistar_last_error(ctx);
+        char name[64];
+        snprintf(name, sizeof name, "metric '%s': ", bad[i]);
+        if (!strstr(e, name) || !strstr(e, "the Hessian of E is 0 on S") ||
+            !strstr(e, "give eps=E") || strchr(e, '\n'))
+            fail_msg("'%s': '%s'", bad[i], e);
+        double q[3];
+        msg_point(e, q);
+        assert_true(fabs(norm3(q) - 1) < 1e-12); /* a point of S, printed in full */
+    }
+    as_field *f;
+    /* with eps: a uniform metric; e = eps^power tangentially and e_n = the largest
+     * e over the sample = eps^power */
+    const struct {
+        const char *spec;
+        double v; /* M = v I */
+    } good[] = {{"hessian:x+2*y,eps=0.5", 0.5},
+                {"hessian:x+2*y,eps=0.5,power=1", 0.25},
+                {"hessian:x+2*y,eps=0.5,en=3", -9}}; /* v < 0: tangential 0.5, normal 9 */
+    tu_rng rng = {12};
+    for (size_t i = 0; i < sizeof good / sizeof good[0]; i++) {
+        f = field(ctx, s, good[i].spec);
+        assert_true(f->eps == 0.5);
+        for (int t = 0; t < 50; t++) {
+            double n[3], m[6], want[6];
+            rand_unit(&rng, n);
+            assert_int_equal(as_field_eval(ctx, f, n, m), ANISTAR_OK);
+            double tv = good[i].v > 0 ? good[i].v : 0.5, nv = good[i].v > 0 ? tv : -good[i].v;
+            int ij[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+            for (int k = 0; k < 6; k++) {
+                int a = ij[k][0], b = ij[k][1];
+                want[k] = tv * ((a == b) - n[a] * n[b]) + nv * n[a] * n[b];
+            }
+            if (tensor_err(m, want) > 1e-14)
+                fail_msg("%s: (%g %g %g %g %g %g)", good[i].spec, m[0], m[1], m[2], m[3], m[4],
+                         m[5]);
+        }
+        as_field_free(f);
+    }
+    /* the public API refuses it the same way */
+    anistar_metric *pm = (anistar_metric *)1;
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "hessian:x+2*y",
+                                              &pm),
+                     ANISTAR_EINVAL);
+    assert_null(pm);
+    assert_non_null(strstr(anistar_last_error(ctx), "Hessian"));
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* Eigenvalues of gradient and hessian fields that overflow the limit are E's, not S's:
+ * EINVAL naming the point (they used to become e_n^2 I). Tiny eps and e_n whose squares
+ * underflow give a tensor the mesher would refuse: EINVAL too (it used to be handed
+ * out as the zero tensor). */
+static void test_builtin_overflow(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s = builtin(ctx, "sphere");
+    /* E = exp(800 x): at (0.6, 0.8, 0) |H| ~ 2.6e214 and |grad E| ~ 3.2e211, both with a
+     * tangential part; at (-1, 0, 0) both vanish */
+    double hot[3] = {0.6, 0.8, 0}, cold[3] = {-1, 0, 0}, m[6];
+    const char *specs[] = {"hessian:exp(800*x),eps=1,en=1,power=1", "gradient:exp(800*x),en=1"};
+    for (size_t i = 0; i < 2; i++) {
+        as_field *f = field(ctx, s, specs[i]);
+        assert_int_equal(as_field_eval(ctx, f, cold, m), ANISTAR_OK);
+        check_spd(m);
+        assert_int_equal(as_field_eval(ctx, f, hot, m), ANISTAR_EINVAL);
+        const char *e = anistar_last_error(ctx);
+        if (!strstr(e, "exceeds") || !strstr(e, "at (0.59999999999999998, 0.80000000000000004, 0)"))
+            fail_msg("%s: '%s'", specs[i], e);
+        as_field_free(f);
+    }
+    /* at a singular point too (the double cone's apex): not replaced by e_n */
+    as_surface *cone = expression(ctx, "x^2+y^2-z^2", 1);
+    as_field *f = field(ctx, cone, "gradient:1e200*x,en=1");
+    double o[3] = {0, 0, 0};
+    assert_int_equal(as_field_eval(ctx, f, o, m), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "at (0, 0, 0)"));
+    as_field_free(f);
+    as_surface_free(cone);
+    /* underflow: every eigenvalue ~1e-300, squares 0 */
+    f = field(ctx, s, "hessian:1e-300*x^2,eps=1e-300,en=1e-300,power=1");
+    double pole[3] = {0, 0, 1};
+    assert_int_equal(as_field_eval(ctx, f, pole, m), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "not finite and positive definite"));
+    assert_non_null(strstr(anistar_last_error(ctx), "at (0, 0, 1)"));
+    as_field_free(f);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* .sol tensors on a triangle-mesh surface: non-finite ones are refused by the reader,
+ * non-SPD ones (and condition numbers the mesher refuses) by the field, naming the vertex
+ * and its position; a valid anisotropic one is clamped as documented. */
+static void write_sol6(const char *path, const double t[6], size_t n, size_t bad,
+                       const char *badline) { /* every vertex t, except vertex bad: badline */
+    FILE *fp = fopen(path, "w");
+    assert_non_null(fp);
+    fprintf(fp, "MeshVersionFormatted 2\nDimension 3\nSolAtVertices\n%zu\n1 3\n", n);
+    for (size_t i = 0; i < n; i++) { /* Medit order m11 m12 m22 m13 m23 m33 */
+        if (i == bad) fprintf(fp, "%s\n", badline);
+        else fprintf(fp, "%.17g %.17g %.17g %.17g %.17g %.17g\n", t[0], t[1], t[3], t[2], t[4], t[5]);
+    }
+    fprintf(fp, "End\n");
+    fclose(fp);
+}
+
+static void test_sol_errors(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s = NULL;
+    assert_int_equal(as_mesh_surface_read(ctx, AS_TEST_DATA_DIR "/sphere_r0.5.off", &s),
+                     ANISTAR_OK);
+    as_mesh_info mi;
+    as_mesh_surface_info(s, &mi);
+    char dir[] = "/tmp/anistar_field_XXXXXX", path[96], spec[128];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/m.sol", dir);
+    snprintf(spec, sizeof spec, "sol:%s", path);
+    const double c[6] = {4, 0, 0, 4, 0, 4};
+    /* Medit order: m11 m12 m22 m13 m23 m33 */
+    const struct {
+        const char *line;
+        anistar_status st;
+        const char *msg;
+    } bad[] = {
+        {"4 nan 4 0 0 4", 0, NULL}, /* the reader's error (any status but OK) */
+        {"4 0 4 0 0 -4", ANISTAR_EFORMAT, "(4 0 0 4 0 -4) is not finite and positive definite"},
+        {"1 2 1 0 0 1", ANISTAR_EFORMAT, "(1 2 0 1 0 1) is not finite and positive definite"},
+        {"1 0 1e-30 0 0 1", ANISTAR_EFORMAT, "not finite and positive definite"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        write_sol6(path, c, mi.nv_in, 6, bad[i].line);
+        as_field *f = (as_field *)1;
+        anistar_status st = as_field_from_spec(ctx, s, spec, &f);
+        assert_null(f);
+        const char *e = anistar_last_error(ctx);
+        if (st == ANISTAR_OK || (bad[i].st && st != bad[i].st) ||
+            (bad[i].msg && (!strstr(e, bad[i].msg) || !strstr(e, "vertex 7 at ("))))
+            fail_msg("'%s': status %d, '%s'", bad[i].line, st, e);
+        if (bad[i].msg) {
+            double q[3];
+            msg_point(e, q);
+            int32_t v = mi.vmap ? mi.vmap[6] : 6;
+            assert_true(v >= 0);
+            assert_memory_equal(q, mi.xyz + 3 * (size_t)v, sizeof q); /* %.17g: exact */
+        }
+    }
+    /* condition number 1e20 (<= 1e24): valid, clamped to F's 1e6 (M's 1e12) */
+    const double thin[6] = {1, 0, 0, 1e-20, 0, 1}, clamped[6] = {1, 0, 0, 1e-12, 0, 1};
+    write_sol6(path, thin, mi.nv_in, (size_t)-1, "");
+    as_field *f = field(ctx, s, spec);
+    double m[6], p[3] = {0.5, 0, 0};
+    assert_int_equal(as_field_eval(ctx, f, p, m), ANISTAR_OK);
+    assert_true(tensor_err(m, clamped) < 1e-12 && fabs(m[3] - 1e-12) < 1e-24);
+    as_field_free(f);
+    remove(path);
+    rmdir(dir);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* Through the public API, up to the mesher: a zero-Hessian SPEC gives no metric (so no
+ * mesher); a callback that turns non-SPD on part of S makes the run EINVAL with the point
+ * and no mesh. */
+static int half_bad_fn(const double p[3], const double n[3], double m[6], void *user) {
+    (void)n;
+    int mode = *(const int *)user;
+    double t[6] = {4, 0, 0, 4, 0, 4};
+    if (p[2] > 0.5) {
+        if (mode == 0) t[5] = -4;  /* indefinite */
+        if (mode == 1) t[1] = 8;   /* indefinite through the off-diagonal */
+        if (mode == 2) t[3] = 0;   /* singular */
+    }
+    memcpy(m, t, sizeof t);
+    return 0;
+}
+
+static void test_mesher_refuses(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    assert_int_equal(anistar_surface_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    anistar_metric *m = (anistar_metric *)1;
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "hessian:x+2*y", &m), ANISTAR_EINVAL);
+    assert_null(m);
+    assert_non_null(strstr(anistar_last_error(ctx), "the Hessian of E is 0 on S"));
+    anistar_mesher *me = (anistar_mesher *)1;
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_EINVAL);
+    assert_null(me);
+    /* with eps it meshes: a uniform metric */
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "hessian:x+2*y,eps=4", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.5), ANISTAR_OK);
+    anistar_mesh *mesh = NULL;
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+    assert_non_null(mesh);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    for (int mode = 0; mode < 3; mode++) {
+        assert_int_equal(anistar_metric_from_callback(ctx, s, half_bad_fn, &mode, &m), ANISTAR_OK);
+        assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+        assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.5), ANISTAR_OK);
+        mesh = (anistar_mesh *)1;
+        assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_EINVAL);
+        assert_null(mesh);
+        const char *e = anistar_last_error(ctx);
+        if (!strstr(e, "not") || !strstr(e, "positive definite")) fail_msg("mode %d: '%s'", mode, e);
+        double q[3];
+        msg_point(e, q);
+        assert_true(q[2] > 0.5); /* where the callback turned bad */
+        anistar_mesher_free(me);
+        anistar_metric_free(m);
+    }
+    anistar_surface_free(s);
     anistar_context_free(ctx);
 }
 
@@ -583,7 +879,9 @@ int main(void) {
         cmocka_unit_test(test_all_kinds_spd),    cmocka_unit_test(test_anisotropy_clamp),
         cmocka_unit_test(test_singular_points),  cmocka_unit_test(test_custom_errors),
         cmocka_unit_test(test_spec_errors),      cmocka_unit_test(test_public_api),
-        cmocka_unit_test(test_alloc_failures),
+        cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_hessian_zero),
+        cmocka_unit_test(test_builtin_overflow), cmocka_unit_test(test_sol_errors),
+        cmocka_unit_test(test_mesher_refuses),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -2,7 +2,8 @@
  * test_mesh_surface.c — triangle-mesh surfaces (lib/surface/mesh.c) and their metric
  * fields (curvature by jets + blending, sol:FILE; lib/surface/field.c):
  *  - every mesh of test/data loads; outside on and beyond the bounding sphere, even
- *    crossing counts along random lines, outward normals, sampling on every component;
+ *    crossing counts along random lines, outward normals, sampling on every component
+ *    (with the exact area of each component);
  *  - sphere_r0.5.off against the exact sphere (the data README's distances), projection
  *    against brute force, side against |p| < 0.5, crossings against brute force;
  *  - curvatures: sphere_r0.5 within a few %, generated sphere and ellipsoid meshes
@@ -157,6 +158,20 @@ static tmesh icosphere(int level) {
     return m;
 }
 
+/* The sum of the areas of triangles tri[0..nt) (3 indices each) of xyz. */
+static double mesh_area(const double *xyz, const int32_t *tri, size_t nt) {
+    double a = 0;
+    for (size_t t = 0; t < nt; t++) {
+        const double *p = xyz + 3 * (size_t)tri[3 * t], *q = xyz + 3 * (size_t)tri[3 * t + 1],
+                     *r = xyz + 3 * (size_t)tri[3 * t + 2];
+        double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]},
+               v[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]}, w[3];
+        cross3(u, v, w);
+        a += 0.5 * norm3(w);
+    }
+    return a;
+}
+
 /* Brute-force closest point of the mesh. */
 static double brute_closest(const as_mesh_info *mi, const double p[3], double q[3]) {
     double best = INFINITY;
@@ -247,6 +262,9 @@ static void test_load_all(void **state) {
         assert_int_equal(smp.ncomponents, 1);
         assert_true(smp.n >= 32 && smp.n <= 65);
         assert_true(smp.spacing > 0);
+        /* the area: the exact sum of the triangles (the same sum in another order) */
+        double area = mesh_area(mi.xyz, mi.tri, mi.nt);
+        assert_true(fabs(smp.area[0] - area) <= 1e-12 * area);
         for (size_t i = 0; i < smp.n; i++) {
             double q[3];
             assert_true(brute_closest(&mi, smp.points + 3 * i, q) == 0);
@@ -947,6 +965,10 @@ static void test_nested(void **state) {
         seen[inner]++;
     }
     assert_true(seen[0] >= 10 && seen[1] >= 10); /* shares proportional to the sizes */
+    /* areas per component: the outer sphere's triangles, the inner one's (1/4 of it) */
+    double outer = mesh_area(m.xyz, m.tri, m.nt);
+    assert_true(fabs(smp.area[0] - outer) <= 1e-12 * outer);
+    assert_true(fabs(smp.area[1] - 0.25 * outer) <= 1e-12 * outer);
     as_surface_sample_free(ctx, &smp);
     as_surface_free(s);
     test_free(xyz);

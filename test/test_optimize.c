@@ -88,7 +88,9 @@ static void run_case(const ocase *c, double **xyz_out, int32_t **tri_out, size_t
     assert_true(fabs(mean0 - before.rho2_mean) <= 1e-9 * mean0);
 
     p.optimize = 1;
-    assert_int_equal(as_mesher_optimize(ss, &p, &mesh), ANISTAR_OK);
+    int stopped = 1;
+    assert_int_equal(as_mesher_optimize(ss, &p, NULL, &mesh, &stopped), ANISTAR_OK);
+    assert_false(stopped);
     const anistar_mesh_stats *S = &mesh->stats;
     size_t nv = mesh->tm.nv, nt = mesh->tm.nt;
     /* still complete and exact */
@@ -319,7 +321,8 @@ static void test_enomem(void **state) {
         as_starset *ss;
         assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
         if (pass == 0) before = a.count;
-        anistar_status st = as_mesher_optimize(ss, &p, &mesh);
+        int stopped;
+        anistar_status st = as_mesher_optimize(ss, &p, NULL, &mesh, &stopped);
         if (pass <= 1) {
             assert_int_equal(st, ANISTAR_OK);
             assert_non_null(mesh);

@@ -1,13 +1,170 @@
 /*
  * estimate.c — the up-front estimate of a run's size (DESIGN.md 4.5). See refine.h.
+ *
+ * The count of a mesh that satisfies rule 1 everywhere follows from the sizing field: a
+ * facet of circumradius h in the local metric covers an M-area of about that of the
+ * ideal (equilateral) triangle of circumradius h, (3 sqrt 3 / 4) h^2, and a closed
+ * triangulation has two facets per vertex, so
+ *
+ *     V ~ C * integral over S of sqrt(det M_tangent(p)) / ((3 sqrt 3 / 2) h(p)^2) dA
+ *
+ * with h(p) = min(r0, the distortion radius, alpha lfs(p)): the sizes rule 1
+ * enforces (r0; gamma0 through the rate at which the metric turns, paper 2.2's distortion
+ * radius; the local feature size of paper 2.3). C corrects for Delaunay refinement
+ * ending with facets smaller than the bound (their circumradii spread over (h/2, h)):
+ * it is measured, see AS_ESTIMATE_FILL. Rules 2 and 3 add a few percent.
  */
 #include "mesher/refine.h"
 
+#include <math.h>
+#include <string.h>
+
+/* Sample points of the integral (the surface's own sampler, area-weighted). */
+#define AS_ESTIMATE_SAMPLE 1024
+
+/* Measured ratio of the final vertex count to the ideal-triangle count on runs sized by
+ * r0 alone (sphere and ellipsoid, euclidean, r0 from R/3 to R/100; docs/benchmarks.md). */
+#define AS_ESTIMATE_FILL 1.7
+
+/* Peak bytes per output vertex of a run (docs/benchmarks.md: 7.1-7.7 KB measured on the
+ * torus, the shock sphere, the chair and the mesh inputs). */
+#define AS_ESTIMATE_BYTES_PER_VERTEX 7600.0
+
+static inline double dot3(const double a[3], const double b[3]) {
+    return (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2];
+}
+
+/* An orthonormal tangent basis (t1, t2) of the unit normal n. */
+static void tangent_basis(const double n[3], double t1[3], double t2[3]) {
+    double a[3] = {0, 0, 0};
+    int k = fabs(n[0]) <= fabs(n[1]) ? (fabs(n[0]) <= fabs(n[2]) ? 0 : 2)
+                                     : (fabs(n[1]) <= fabs(n[2]) ? 1 : 2);
+    a[k] = 1;
+    double d = dot3(a, n);
+    for (int i = 0; i < 3; i++) t1[i] = a[i] - d * n[i];
+    double l = sqrt(dot3(t1, t1));
+    for (int i = 0; i < 3; i++) t1[i] /= l;
+    t2[0] = n[1] * t1[2] - n[2] * t1[1];
+    t2[1] = n[2] * t1[0] - n[0] * t1[2];
+    t2[2] = n[0] * t1[1] - n[1] * t1[0];
+}
+
+/* gamma between M_p and the metric at the point of S a step of M_p length d from p along
+ * the tangent direction u (unit); *g = 1 when the projection finds no surface. */
+static anistar_status gamma_at(as_starset *ss, const double p[3], const as_metric_frame *mf,
+                               const double u[3], double ulen, double d, double *g) {
+    double q[3];
+    for (int i = 0; i < 3; i++) q[i] = p[i] + (d / ulen) * u[i];
+    *g = 1;
+    anistar_status s = as_surface_project(ss->ctx, ss->surf, q, q);
+    if (s == ANISTAR_ENOSURFACE) return ANISTAR_OK;
+    if (s != ANISTAR_OK) return s;
+    as_metric_frame mq;
+    if ((s = as_starset_metric(ss, q, &mq)) != ANISTAR_OK) return s;
+    *g = as_metric_distortion(mf, &mq);
+    return ANISTAR_OK;
+}
+
+/*
+ * The distortion radius at p in M_p units (frame mf, tangent basis t1, t2), capped at
+ * cap: the smallest, over four tangent directions, M_p distance d at which the distortion
+ * gamma(M_p, M_q) between p and the point q of S that far reaches gamma0 (paper 2.2's
+ * dr, seen from p), found by doubling from cap/8 then bisecting to 5%. The vertices of a
+ * facet of circumradius r lie up to about sqrt 3 r apart, so rule 1's distortion bound
+ * holds for r up to dr / sqrt 3. gamma is not a power of d (it grows quadratically while
+ * the frames turn by small angles, linearly after), so dr is searched, not extrapolated
+ * from one step.
+ */
+static anistar_status distortion_radius(as_starset *ss, const as_mesher_params *prm,
+                                        const double p[3], const as_metric_frame *mf,
+                                        const double t1[3], const double t2[3], double cap,
+                                        double *out) {
+    static const double dirs[4][2] = {{1, 0}, {0, 1}, {0.70710678118654752, 0.70710678118654752},
+                                      {0.70710678118654752, -0.70710678118654752}};
+    double best = cap;
+    for (int j = 0; j < 4; j++) {
+        double u[3], y[3];
+        for (int i = 0; i < 3; i++) u[i] = dirs[j][0] * t1[i] + dirs[j][1] * t2[i];
+        as_metric_apply(mf, u, y);
+        double ulen = sqrt(dot3(y, y)), g;
+        /* a bracket [lo, hi] with gamma(lo) < gamma0 <= gamma(hi), hi < best */
+        double lo = 0, hi = best / 8;
+        anistar_status s;
+        for (;;) {
+            if ((s = gamma_at(ss, p, mf, u, ulen, hi, &g)) != ANISTAR_OK) return s;
+            if (g >= prm->gamma0) break;
+            lo = hi;
+            hi *= 2;
+            if (hi >= best) {
+                hi = -1;
+                break;
+            }
+        }
+        if (hi < 0) continue;
+        while (hi - lo > 0.05 * hi) {
+            double mid = 0.5 * (lo + hi);
+            if ((s = gamma_at(ss, p, mf, u, ulen, mid, &g)) != ANISTAR_OK) return s;
+            if (g >= prm->gamma0) hi = mid;
+            else lo = mid;
+        }
+        if (hi < best) best = hi;
+    }
+    *out = best;
+    return ANISTAR_OK;
+}
+
 anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
                                   double *bytes) {
-    (void)ss;
-    (void)prm;
+    anistar_context *ctx = ss->ctx;
     *vertices = 0;
     *bytes = 0;
+    as_point_sample smp;
+    anistar_status s = as_surface_sample(ctx, ss->surf, AS_ESTIMATE_SAMPLE, &smp);
+    if (s != ANISTAR_OK) return s;
+    size_t *count = as_alloc_array(ctx, smp.ncomponents ? smp.ncomponents : 1, sizeof *count);
+    if (!count) {
+        as_surface_sample_free(ctx, &smp);
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (estimate)");
+    }
+    memset(count, 0, (smp.ncomponents ? smp.ncomponents : 1) * sizeof *count);
+    for (size_t i = 0; i < smp.n; i++) count[smp.component[i]]++;
+    const double ideal = 1.5 * sqrt(3.0); /* two ideal triangles per vertex, per h^2 */
+    double sum = 0;
+    for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) {
+        const double *p = smp.points + 3 * i;
+        double w = smp.area[smp.component[i]] / (double)count[smp.component[i]];
+        double n[3], t1[3], t2[3];
+        int sing = 0;
+        if ((s = as_surface_normal_at(ctx, ss->surf, p, n, &sing)) != ANISTAR_OK) break;
+        if (sing) continue;
+        tangent_basis(n, t1, t2);
+        as_metric_frame mf;
+        if ((s = as_starset_metric(ss, p, &mf)) != ANISTAR_OK) break;
+        /* sqrt(det) of the metric restricted to the tangent plane: |F t1 x F t2| */
+        double a[3], b[3], c[3];
+        as_metric_apply(&mf, t1, a);
+        as_metric_apply(&mf, t2, b);
+        c[0] = a[1] * b[2] - a[2] * b[1];
+        c[1] = a[2] * b[0] - a[0] * b[2];
+        c[2] = a[0] * b[1] - a[1] * b[0];
+        double dens = sqrt(dot3(c, c));
+        double h = prm->r0;
+        double dr;
+        if ((s = distortion_radius(ss, prm, p, &mf, t1, t2, sqrt(3.0) * h, &dr)) != ANISTAR_OK)
+            break;
+        if (dr / sqrt(3.0) < h) h = dr / sqrt(3.0);
+        double lfs;
+        int exact;
+        if ((s = as_feature_lfs(ctx, &ss->feat, &mf, p, h / ss->alpha, &ss->fids, &lfs,
+                                &exact)) != ANISTAR_OK)
+            break;
+        if (ss->alpha * lfs < h) h = ss->alpha * lfs;
+        sum += w * dens / (ideal * h * h);
+    }
+    as_free(ctx, count, (smp.ncomponents ? smp.ncomponents : 1) * sizeof *count);
+    as_surface_sample_free(ctx, &smp);
+    if (s != ANISTAR_OK) return s;
+    *vertices = AS_ESTIMATE_FILL * sum;
+    *bytes = (double)ctx->bytes + AS_ESTIMATE_BYTES_PER_VERTEX * *vertices;
     return ANISTAR_OK;
 }

@@ -23,6 +23,7 @@ typedef struct as_mesher_params {
     int32_t pick_tries;
     int32_t initial_points; /* initial sites wanted (0: automatic) */
     int32_t optimize;       /* 1: vertex optimisation after a complete run (optimize.c) */
+    double alpha0;          /* tests: the first feature-size fraction (0: AS_FEATURE_ALPHA) */
 } as_mesher_params;
 
 void as_mesher_params_default(as_mesher_params *p);
@@ -54,6 +55,7 @@ typedef struct as_mesher_counters {
     uint64_t initial, rule[3], topology, cause[AS_NCAUSES];
     uint64_t pick_tries, pick_failures;
     uint64_t stall_max;
+    uint64_t halvings; /* times alpha was halved after failed final checks */
     double t_init, t_refine, t_output, t_total;
     double estimate_vertices, estimate_bytes;
     int stop_reason; /* anistar_stop_reason */
@@ -64,6 +66,8 @@ struct anistar_mesh {
     anistar_context *ctx;
     as_trimesh tm;              /* vertices, triangles (outward), per-vertex tensors */
     anistar_mesh_stats stats;
+    int32_t *gid;               /* per vertex: its global id in the star set (internal) */
+    size_t ngid;
 };
 
 /*
@@ -96,13 +100,27 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
  * The final checks of a complete run (anistar_mesher_run's contract for ANISTAR_OK), on
  * the output m of the star set ss (output.c): every site's star one closed fan; the mesh
  * non-empty, a closed 2-manifold, consistently oriented (m's triangles are reoriented
- * per component when needed, outward by the normals of S); one output component per
- * component of the surface sample (the initial sites say which) and no component holding
- * sites of two; for a triangle-mesh surface, each component's Euler characteristic equal
- * to the input component's. *ok = 1 when all hold; otherwise *ok = 0 and ctx's message
- * names the first failure and a point on it. Fills m's stats.components. OK or ENOMEM.
+ * per component when needed, outward by the normals of S); no edge bridging a gap
+ * (step 4 of the design in output.c); every sample component
+ * meshed; for a triangle-mesh surface its components exactly (none split, joined or
+ * extra) with their Euler characteristics. *ok = 1 when all hold; otherwise *ok = 0, ctx's
+ * message names the first failure and a point on it, *sig identifies it (AS_CERT_* and
+ * the components involved), and *refinable = 1 when finer sampling can cure it
+ * (everything but a lost component or a star left open). A failed fidelity check (step
+ * 4) also leaves in ss->fix the points of S that every offending edge misses (the
+ * projections of their midpoints): the refiner inserts them. Fills m's stats.components
+ * and components_found/split/joined. OK or ENOMEM.
  */
-anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok);
+#define AS_CERT_SPLIT (1ull << 56)
+#define AS_CERT_JOIN (2ull << 56)
+#define AS_CERT_PIECE (3ull << 56)
+#define AS_CERT_EULER (4ull << 56)
+#define AS_CERT_ORIENT (5ull << 56)
+#define AS_CERT_FIDELITY (6ull << 56)
+#define AS_CERT_SAGITTA 0.5
+#define AS_CERT_OPPOSITE (-0.8660254037844386) /* cos 150 degrees */
+anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *refinable,
+                                 uint64_t *sig);
 
 void as_mesh_free(anistar_mesh *m);
 

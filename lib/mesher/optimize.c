@@ -217,7 +217,7 @@ static anistar_status optimize_site(as_starset *ss, const as_mesher_params *prm,
 }
 
 anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
-                                   as_optimize_counters *cnt) {
+                                   const atomic_int *stop, as_optimize_counters *cnt) {
     anistar_context *ctx = ss->ctx;
     double t0 = now_seconds();
     memset(cnt, 0, sizeof *cnt);
@@ -254,7 +254,13 @@ anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
         cnt->passes++;
         sort_items(items, ni);
         uint64_t moved_pass = 0;
-        for (size_t i = 0; i < ni; i++) {
+        for (size_t i = 0; i < ni && !cnt->stopped; i++) {
+            /* design: a stop request ends the pass between two moves (each move leaves
+             * the star set valid) */
+            if (stop && atomic_load(stop)) {
+                cnt->stopped = 1;
+                break;
+            }
             int32_t v = items[i].v;
             int moved;
             if ((s = optimize_site(ss, prm, &mv, v, cnt, &moved)) != ANISTAR_OK) goto done;
@@ -270,7 +276,7 @@ anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
                 (s = as_starmove_flush(ss, &mv)) != ANISTAR_OK)
                 goto done;
         }
-        if (moved_pass == 0) break;
+        if (moved_pass == 0 || cnt->stopped) break;
     }
     if (mv.stale) s = as_starmove_flush(ss, &mv);
 done:
@@ -282,12 +288,14 @@ done:
 }
 
 anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
-                                  anistar_mesh **out) {
+                                  const atomic_int *stop, anistar_mesh **out, int *stopped) {
     anistar_mesh *m = *out;
+    *stopped = 0;
     if (!m || !m->stats.complete || ss->ninc != 0) return ANISTAR_OK;
     const anistar_mesh_stats *S = &m->stats;
     as_optimize_counters oc;
-    anistar_status s = as_optimize_starset(ss, prm, &oc);
+    anistar_status s = as_optimize_starset(ss, prm, stop, &oc);
+    *stopped = oc.stopped;
     anistar_mesh *m2 = NULL;
     if (s == ANISTAR_OK) {
         as_mesher_counters c;
@@ -307,6 +315,16 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
         return s;
     }
     anistar_mesh_stats *T = &m2->stats;
+    /* the refinement's counters carry over */
+    T->insertions_topology = S->insertions_topology;
+    T->insertions_size = S->insertions_size;
+    T->insertions_distortion = S->insertions_distortion;
+    T->insertions_approx = S->insertions_approx;
+    T->insertions_feature = S->insertions_feature;
+    T->stall_max = S->stall_max;
+    T->estimate_vertices = S->estimate_vertices;
+    T->estimate_bytes = S->estimate_bytes;
+    T->stop_reason = S->stop_reason;
     T->seconds_output = S->seconds_output + oc.seconds;
     T->optimized = 1;
     T->optimize_moved = oc.moved;

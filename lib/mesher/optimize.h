@@ -22,6 +22,7 @@ typedef struct as_optimize_counters {
     uint64_t moved;  /* accepted moves */
     uint64_t tries;  /* candidate positions tested (moves performed, accepted or undone) */
     uint64_t passes; /* passes run */
+    int stopped;     /* the stop flag ended it early (the star set stays valid) */
     double seconds;
 } as_optimize_counters;
 
@@ -48,7 +49,7 @@ typedef struct as_optimize_counters {
  *  pass, instead of on average.
  */
 anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
-                                   as_optimize_counters *cnt);
+                                   const atomic_int *stop, as_optimize_counters *cnt);
 
 /*
  * The post-pass on a finished run: if (*out)->stats.complete, optimise ss, then replace
@@ -58,6 +59,6 @@ anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
  * error *out is freed and set to NULL.
  */
 anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
-                                  anistar_mesh **out);
+                                  const atomic_int *stop, anistar_mesh **out, int *stopped);
 
 #endif /* ANISTAR_OPTIMIZE_H */

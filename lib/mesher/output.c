@@ -10,6 +10,7 @@
 void as_mesh_free(anistar_mesh *m) {
     if (!m) return;
     anistar_context *ctx = m->ctx;
+    as_free(ctx, m->gid, m->ngid * sizeof *m->gid);
     as_trimesh_free(ctx, &m->tm);
     as_free(ctx, m, sizeof *m);
 }
@@ -60,6 +61,13 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     for (int32_t i = 0; i < ss->n; i++)
         if (map[i] == 0) map[i] = (int32_t)nv++;
     if ((s = as_trimesh_reserve(ctx, &m->tm, nv, 2 * nv + 8)) != ANISTAR_OK) goto fail;
+    if (nv && !(m->gid = as_alloc_array(ctx, nv, sizeof *m->gid))) {
+        s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (output)");
+        goto fail;
+    }
+    m->ngid = nv;
+    for (int32_t i = 0; i < ss->n; i++)
+        if (map[i] >= 0) m->gid[map[i]] = i;
     for (int32_t i = 0; i < ss->n; i++)
         if (map[i] >= 0) {
             const double *x = ss->xyz + 3 * (size_t)i;
@@ -182,9 +190,417 @@ fail:
     return s;
 }
 
-anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok) {
-    (void)ss;
-    (void)m;
-    *ok = 1;
+/* ---- the final checks (anistar_mesher_run's contract) --------------------------------- */
+
+static int32_t uf_find(int32_t *uf, int32_t x) {
+    while (uf[x] != x) {
+        uf[x] = uf[uf[x]];
+        x = uf[x];
+    }
+    return x;
+}
+
+/* Position of vertex a in triangle t (0..2), or -1. */
+static int tri_pos(const int32_t *tri, int32_t t, int32_t a) {
+    for (int k = 0; k < 3; k++)
+        if (tri[3 * (size_t)t + k] == a) return k;
+    return -1;
+}
+
+/*
+ * 1 in *yes when the piece oc of the mesh (vertex labels uf) bounds a region of its own:
+ * the mean of its vertices is off S (inside a blob, or outside in a cavity) and each of
+ * the six axis rays from there meets S within one and a half times the diagonal of the
+ * piece's box. A separate component of S (a blob, a cavity) does; a fragment of a plate,
+ * a tube or a larger part does not (along the part, a ray stays on one side of S past the
+ * fragment).
+ */
+static anistar_status piece_encloses(anistar_context *ctx, const as_surface *surf,
+                                     const as_trimesh *tm, const int32_t *uf, int32_t oc,
+                                     int *yes) {
+    *yes = 0;
+    double m[3] = {0, 0, 0}, lo[3] = {INFINITY, INFINITY, INFINITY},
+           hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    size_t n = 0;
+    for (size_t v = 0; v < tm->nv; v++) {
+        if (uf[v] != oc) continue;
+        for (int k = 0; k < 3; k++) {
+            double x = tm->xyz[3 * v + k];
+            m[k] += x;
+            if (x < lo[k]) lo[k] = x;
+            if (x > hi[k]) hi[k] = x;
+        }
+        n++;
+    }
+    if (!n) return ANISTAR_OK;
+    for (int k = 0; k < 3; k++) m[k] /= (double)n;
+    int side = 0;
+    anistar_status s = as_surface_side(ctx, surf, m, &side);
+    if (s != ANISTAR_OK || side == 0) return s;
+    double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+    double len = 1.5 * sqrt(dx * dx + dy * dy + dz * dz);
+    for (int d = 0; d < 6; d++) {
+        double e[3] = {m[0], m[1], m[2]}, x[3];
+        e[d >> 1] += (d & 1) ? -len : len;
+        int hit = 0;
+        if ((s = as_surface_crossing(ctx, surf, m, e, m, &hit, x)) != ANISTAR_OK) return s;
+        if (!hit) return ANISTAR_OK;
+    }
+    *yes = 1;
     return ANISTAR_OK;
+}
+
+/*
+ * design:
+ *  1. every site's star is one closed fan (the topology rule's invariant at the end);
+ *  2. the mesh is non-empty and, by as_topology_check, a closed 2-manifold;
+ *  3. orientation: the output orients each facet by the normal of S at its surface
+ *     center; breadth-first search across edges makes each component consistent,
+ *     keeping the orientation of the larger area (area-weighted vote); a component
+ *     that admits none fails;
+ *  4. no edge bridges a gap: an edge does when its midpoint lies outside S, farther than
+ *     AS_CERT_SAGITTA of its half length from S, and the normals of S at its ends are
+ *     nearly opposite (below AS_CERT_OPPOSITE): it joins two parts of S that face each
+ *     other across a gap narrower than the facets (two components joined, a handle
+ *     closed). A chord of a surface whose normal turns by at most 90 degrees along it has
+ *     a sagitta of at most tan(22.5 deg) = 0.41 of its half length, and a chord across a
+ *     crease joins faces at an angle: neither is flagged. An edge over the rim of a plate
+ *     or the crest of a ridge passes inside S and is not flagged either (the topology is
+ *     right there); a plate or tube cut through is left to the feature size (its medial
+ *     points) and, for triangle meshes, to the Euler characteristics of step 5;
+ *  5. components (union-find of the triangles' vertices) against the sample components
+ *     of the initial sites: each sample component meshed. For a triangle-mesh surface the
+ *     components are exact: each in exactly one piece, no piece holding two or none, and
+ *     chi = V - F/2 of each equal to the input component's. For function kinds (implicit,
+ *     image) the sampler's grid may merge components closer than a cell, split one at a
+ *     neck thinner than a cell or miss one smaller than a cell: a join is accepted (step 4
+ *     found no bridge), and a piece found by refinement or split off a sample component
+ *     is accepted when it bounds a region of its own (piece_encloses: a separate blob or
+ *     cavity does, a fragment of a plate or a tube does not). The counts are in the
+ *     statistics.
+ */
+anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *refinable,
+                                 uint64_t *sig) {
+    anistar_context *ctx = ss->ctx;
+    as_trimesh *tm = &m->tm;
+    *ok = 0;
+    *refinable = 0;
+    *sig = 0;
+    ss->nfix = 0;
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        const as_star *st = ss->stars[v];
+        if (!st->closed) {
+            const double *x = ss->xyz + 3 * (size_t)v;
+            as_fail(ctx, ANISTAR_INCOMPLETE,
+                    "mesher: uncertified: the star of site %d at (%.17g, %.17g, %.17g) is not "
+                    "one closed fan (%d facets) and the topology rule found no point to insert",
+                    (int)v, x[0], x[1], x[2], (int)st->nrf);
+            return ANISTAR_OK;
+        }
+    }
+    if (tm->nt == 0) {
+        as_fail(ctx, ANISTAR_INCOMPLETE, "mesher: uncertified: the mesh is empty");
+        return ANISTAR_OK;
+    }
+    as_topology top;
+    anistar_status s = as_topology_check(ctx, tm->nv, tm->xyz, tm->nt, tm->tri, &top);
+    if (s != ANISTAR_OK) return s;
+    if (!top.closed_manifold) {
+        as_fail(ctx, ANISTAR_INCOMPLETE,
+                "mesher: uncertified: the stitched stars are not a closed 2-manifold (%zu border "
+                "edges, %zu non-manifold edges, %zu non-manifold vertices)",
+                top.border_edges, top.nonmanifold_edges, top.nonmanifold_vertices);
+        return ANISTAR_OK;
+    }
+    size_t nv = tm->nv, nt = tm->nt;
+    int32_t *start = as_alloc_array(ctx, nv + 1, sizeof *start);
+    int32_t *inc = as_alloc_array(ctx, 3 * nt, sizeof *inc);
+    int32_t *uf = as_alloc_array(ctx, nv, sizeof *uf);
+    int32_t *queue = as_alloc_array(ctx, nt, sizeof *queue);
+    int8_t *flip = as_alloc_array(ctx, nt, sizeof *flip);
+    int32_t *tcomp = as_alloc_array(ctx, nt, sizeof *tcomp);
+    int32_t *vmap = as_alloc_array(ctx, (size_t)ss->n, sizeof *vmap);
+    size_t ncomp = 0, cap_c = 0;
+    double *vote = NULL;     /* per component: area agreeing minus disagreeing */
+    int32_t *cs = NULL;      /* per component: its sample component, -1 none, -2 several */
+    int32_t *cvert = NULL;   /* per component: a vertex, for messages */
+    long long *cchi = NULL;  /* per component: V - F/2 (times 2 during counting) */
+    int32_t *sc_out = NULL;  /* per sample component: its output component, -1 none */
+    uint8_t *split = NULL;   /* per sample component: its sites are in two pieces or more */
+    s = ANISTAR_OK;
+    if (!start || !inc || !uf || !queue || !flip || !tcomp || !vmap) goto nomem;
+    /* vertex -> triangles (CSR) and components */
+    memset(start, 0, (nv + 1) * sizeof *start);
+    for (size_t i = 0; i < 3 * nt; i++) start[tm->tri[i] + 1]++;
+    for (size_t v = 0; v < nv; v++) start[v + 1] += start[v];
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) inc[start[tm->tri[3 * t + k]]++] = (int32_t)t;
+    for (size_t v = nv; v > 0; v--) start[v] = start[v - 1];
+    start[0] = 0;
+    for (size_t v = 0; v < nv; v++) uf[v] = (int32_t)v;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 1; k < 3; k++) {
+            int32_t a = uf_find(uf, tm->tri[3 * t]), b = uf_find(uf, tm->tri[3 * t + k]);
+            if (a < b) uf[b] = a;
+            else if (b < a) uf[a] = b;
+        }
+    /* label components in vertex order (roots are the smallest index of their set, so a
+     * root is labelled before its members; every parent link is resolved first) */
+    for (size_t v = 0; v < nv; v++) uf[v] = uf_find(uf, (int32_t)v);
+    for (size_t v = 0; v < nv; v++) {
+        int32_t r = uf[v]; /* the root (r <= v: already a label when r < v) */
+        uf[v] = r == (int32_t)v ? (int32_t)ncomp++ : uf[r];
+    }
+    cap_c = ncomp ? ncomp : 1;
+    vote = as_alloc_array(ctx, cap_c, sizeof *vote);
+    cs = as_alloc_array(ctx, cap_c, sizeof *cs);
+    cvert = as_alloc_array(ctx, cap_c, sizeof *cvert);
+    cchi = as_alloc_array(ctx, cap_c, sizeof *cchi);
+    sc_out = as_alloc_array(ctx, ss->nscomp > 0 ? (size_t)ss->nscomp : 1, sizeof *sc_out);
+    split = as_alloc_array(ctx, ss->nscomp > 0 ? (size_t)ss->nscomp : 1, sizeof *split);
+    if (!vote || !cs || !cvert || !cchi || !sc_out || !split) goto nomem;
+    for (size_t c = 0; c < ncomp; c++) {
+        vote[c] = 0;
+        cs[c] = -1;
+        cvert[c] = -1;
+        cchi[c] = 0;
+    }
+    for (size_t v = 0; v < nv; v++) {
+        if (cvert[uf[v]] < 0) cvert[uf[v]] = (int32_t)v;
+        cchi[uf[v]] += 2;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        tcomp[t] = uf[tm->tri[3 * t]];
+        cchi[tcomp[t]] -= 1;
+    }
+    m->stats.components = ncomp;
+    m->stats.components_found = m->stats.components_split = m->stats.components_joined = 0;
+    *refinable = 1; /* from here on, every failure is one of topology */
+    /* 3. consistent orientation by breadth-first search; flip[t] relative to the seed */
+    for (size_t t = 0; t < nt; t++) flip[t] = -1;
+    for (size_t seed = 0; seed < nt; seed++) {
+        if (flip[seed] >= 0) continue;
+        size_t head = 0, tail = 0;
+        flip[seed] = 0;
+        queue[tail++] = (int32_t)seed;
+        while (head < tail) {
+            int32_t t = queue[head++];
+            const int32_t *T = tm->tri + 3 * (size_t)t;
+            for (int k = 0; k < 3; k++) {
+                /* t traverses a -> b (as oriented after its flip) */
+                int32_t a = T[k], b = T[(k + 1) % 3];
+                if (flip[t]) {
+                    int32_t x = a;
+                    a = b;
+                    b = x;
+                }
+                for (int32_t j = start[a]; j < start[a + 1]; j++) {
+                    int32_t u = inc[j];
+                    if (u == t) continue;
+                    int pa = tri_pos(tm->tri, u, a), pb = tri_pos(tm->tri, u, b);
+                    if (pb < 0) continue;
+                    /* u as given traverses a -> b iff pb follows pa */
+                    int same = (pa + 1) % 3 == pb;
+                    int want = same ? 1 : 0; /* u must traverse b -> a */
+                    if (flip[u] < 0) {
+                        flip[u] = (int8_t)want;
+                        queue[tail++] = u;
+                    } else if (flip[u] != want) {
+                        const double *x = tm->xyz + 3 * (size_t)a;
+                        *sig = AS_CERT_ORIENT;
+                        as_fail(ctx, ANISTAR_INCOMPLETE,
+                                "mesher: uncertified: the mesh is not orientable near "
+                                "(%.17g, %.17g, %.17g)",
+                                x[0], x[1], x[2]);
+                        goto done;
+                    }
+                }
+            }
+        }
+    }
+    /* the area-weighted vote: flip[t] = 1 disagrees with the normal-based orientation */
+    for (size_t t = 0; t < nt; t++) {
+        const int32_t *T = tm->tri + 3 * t;
+        const double *a = tm->xyz + 3 * (size_t)T[0], *b = tm->xyz + 3 * (size_t)T[1],
+                     *c = tm->xyz + 3 * (size_t)T[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                       u[0] * w[1] - u[1] * w[0]};
+        double area = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        vote[tcomp[t]] += flip[t] ? -area : area;
+    }
+    size_t flipped = 0;
+    for (size_t t = 0; t < nt; t++) {
+        int f = flip[t] ^ (vote[tcomp[t]] < 0);
+        if (!f) continue;
+        int32_t *T = tm->tri + 3 * t, x = T[1];
+        T[1] = T[2];
+        T[2] = x;
+        flipped++;
+    }
+    (void)flipped;
+    /* 4. fidelity: every edge hugs S (see the design note) */
+    for (size_t t = 0; t < nt; t++) {
+        const int32_t *T = tm->tri + 3 * t;
+        for (int k = 0; k < 3; k++) {
+            int32_t a = T[k], b = T[(k + 1) % 3];
+            if (a > b) continue; /* each edge once (the other triangle has b -> a) */
+            const double *x = tm->xyz + 3 * (size_t)a, *y = tm->xyz + 3 * (size_t)b;
+            double mid[3], q[3], e2 = 0, d2 = 0;
+            for (int j = 0; j < 3; j++) {
+                mid[j] = 0.5 * (x[j] + y[j]);
+                e2 += (y[j] - x[j]) * (y[j] - x[j]);
+            }
+            s = as_surface_project(ctx, ss->surf, mid, q);
+            if (s == ANISTAR_ENOSURFACE) {
+                s = ANISTAR_OK;
+                continue;
+            }
+            if (s != ANISTAR_OK) goto done;
+            for (int j = 0; j < 3; j++) d2 += (q[j] - mid[j]) * (q[j] - mid[j]);
+            /* d > AS_CERT_SAGITTA * (half the edge), outside S, between points whose
+             * normals of S are nearly opposite (not a crease: its faces meet at an angle) */
+            int mside = 0;
+            if (d2 > AS_CERT_SAGITTA * AS_CERT_SAGITTA * 0.25 * e2 &&
+                (s = as_surface_side(ctx, ss->surf, mid, &mside)) != ANISTAR_OK)
+                goto done;
+            if (mside > 0 && d2 > AS_CERT_SAGITTA * AS_CERT_SAGITTA * 0.25 * e2) {
+                double nx[3], ny[3];
+                int sx = 0, sy = 0;
+                if ((s = as_surface_normal_at(ctx, ss->surf, x, nx, &sx)) != ANISTAR_OK ||
+                    (s = as_surface_normal_at(ctx, ss->surf, y, ny, &sy)) != ANISTAR_OK)
+                    goto done;
+                if (sx || sy || nx[0] * ny[0] + nx[1] * ny[1] + nx[2] * ny[2] > AS_CERT_OPPOSITE)
+                    continue;
+                if (!*sig) {
+                    *sig = AS_CERT_FIDELITY;
+                    as_fail(ctx, ANISTAR_INCOMPLETE,
+                            "mesher: uncertified: the mesh edge from (%.17g, %.17g, %.17g) to "
+                            "(%.17g, %.17g, %.17g) passes %.3g from S, %.2f of its half length: "
+                            "it bridges a gap between two parts of S",
+                            x[0], x[1], x[2], y[0], y[1], y[2], sqrt(d2), sqrt(d2 / (0.25 * e2)));
+                }
+                /* the point of S it misses: a refinement point (the refiner inserts it) */
+                if (ss->nfix == ss->cap_fix &&
+                    as_grow(ctx, (void **)&ss->fix, &ss->cap_fix, ss->nfix + 1, 4 * sizeof *ss->fix))
+                    goto nomem;
+                double *F = ss->fix + 4 * ss->nfix++;
+                memcpy(F, q, sizeof q);
+                F[3] = 0.5 * sqrt(e2);
+            }
+        }
+    }
+    if (*sig) goto done;
+    /* 5. components against the sample components of the initial sites */
+    for (int32_t i = 0; i < ss->n; i++) vmap[i] = -1;
+    for (size_t k = 0; k < nv; k++) vmap[m->gid[k]] = (int32_t)k;
+    for (int32_t c = 0; c < ss->nscomp; c++) {
+        sc_out[c] = -1;
+        split[c] = 0;
+    }
+    const int exact = as_surface_is_mesh(ss->surf);
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        int32_t c = ss->scomp[v];
+        if (c < 0 || vmap[v] < 0) continue;
+        int32_t oc = uf[vmap[v]];
+        const double *x = ss->xyz + 3 * (size_t)v;
+        if (sc_out[c] >= 0 && sc_out[c] != oc) {
+            split[c] = 1;
+            if (exact) {
+                *sig = AS_CERT_SPLIT | (uint64_t)c;
+                as_fail(ctx, ANISTAR_INCOMPLETE,
+                        "mesher: uncertified: input component %d came out as two or more "
+                        "pieces, one of them around (%.17g, %.17g, %.17g)",
+                        (int)c, x[0], x[1], x[2]);
+                goto done;
+            }
+        } else {
+            sc_out[c] = oc;
+        }
+        if (cs[oc] >= 0 && cs[oc] != c) {
+            if (exact) {
+                *sig = AS_CERT_JOIN | ((uint64_t)cs[oc] << 24) | (uint64_t)c;
+                as_fail(ctx, ANISTAR_INCOMPLETE,
+                        "mesher: uncertified: input components %d and %d are joined in one "
+                        "piece of the mesh around (%.17g, %.17g, %.17g)",
+                        (int)cs[oc], (int)c, x[0], x[1], x[2]);
+                goto done;
+            }
+            m->stats.components_joined++;
+        } else {
+            cs[oc] = c;
+        }
+    }
+    for (int32_t c = 0; c < ss->nscomp; c++) m->stats.components_split += split[c];
+    for (int32_t c = 0; c < ss->nscomp; c++)
+        if (sc_out[c] < 0) {
+            *refinable = 0;
+            as_fail(ctx, ANISTAR_INCOMPLETE,
+                    "mesher: uncertified: sample component %d of S has no mesh (its initial sites "
+                    "are in no output facet)",
+                    (int)c);
+            goto done;
+        }
+    /* a piece that is not the whole mesh of one sample component (found by refinement, or
+     * one of a split) must bound a region of its own (function kinds; exact kinds have
+     * no such piece) */
+    for (size_t oc = 0; oc < ncomp; oc++) {
+        int alone = cs[oc] >= 0 && !split[cs[oc]];
+        if (alone) continue;
+        const double *x = tm->xyz + 3 * (size_t)cvert[oc];
+        if (!exact) {
+            int yes = 0;
+            if ((s = piece_encloses(ctx, ss->surf, tm, uf, (int32_t)oc, &yes)) != ANISTAR_OK)
+                goto done;
+            if (yes) {
+                if (cs[oc] < 0) m->stats.components_found++;
+                continue;
+            }
+        }
+        *sig = AS_CERT_PIECE | (uint64_t)oc;
+        as_fail(ctx, ANISTAR_INCOMPLETE,
+                "mesher: uncertified: a piece of the mesh around (%.17g, %.17g, %.17g) %s: a "
+                "fragment of a thinner part (plate, tube, neck) than the facets resolved",
+                x[0], x[1], x[2],
+                exact ? "covers no input component" : "bounds no region of its own");
+        goto done;
+    }
+    if (as_surface_is_mesh(ss->surf)) {
+        as_mesh_info mi;
+        as_mesh_surface_info(ss->surf, &mi);
+        for (size_t oc = 0; oc < ncomp; oc++) {
+            const double *x = tm->xyz + 3 * (size_t)cvert[oc];
+            long long chi = cchi[oc] / 2, want = mi.ceuler[cs[oc]];
+            if (cchi[oc] % 2 != 0 || chi != want) {
+                *sig = AS_CERT_EULER | (uint64_t)oc;
+                as_fail(ctx, ANISTAR_INCOMPLETE,
+                        "mesher: uncertified: the mesh component around (%.17g, %.17g, %.17g) "
+                        "has Euler characteristic %lld, the input component %lld: features "
+                        "finer than the sampling (try a smaller r0)",
+                        x[0], x[1], x[2], chi, want);
+                goto done;
+            }
+        }
+    }
+    *ok = 1;
+    *refinable = 0;
+    goto done;
+nomem:
+    s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (final checks)");
+done:
+    as_free(ctx, start, (nv + 1) * sizeof *start);
+    as_free(ctx, inc, 3 * nt * sizeof *inc);
+    as_free(ctx, uf, nv * sizeof *uf);
+    as_free(ctx, queue, nt * sizeof *queue);
+    as_free(ctx, flip, nt * sizeof *flip);
+    as_free(ctx, tcomp, nt * sizeof *tcomp);
+    as_free(ctx, vmap, (size_t)ss->n * sizeof *vmap);
+    as_free(ctx, vote, cap_c * sizeof *vote);
+    as_free(ctx, cs, cap_c * sizeof *cs);
+    as_free(ctx, cvert, cap_c * sizeof *cvert);
+    as_free(ctx, cchi, cap_c * sizeof *cchi);
+    as_free(ctx, sc_out, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *sc_out);
+    as_free(ctx, split, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *split);
+    return s;
 }

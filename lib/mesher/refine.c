@@ -8,6 +8,7 @@
 #include <math.h>
 #include <string.h>
 #include <time.h>
+#include <stdio.h>
 
 void as_mesher_params_default(as_mesher_params *p) {
     memset(p, 0, sizeof *p);
@@ -118,15 +119,15 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
         }
     }
     /* design: the lfs part of the sizing field (paper 2.3, sf = min(lfs, dr)): facets of
-     * v's star stay below AS_FEATURE_ALPHA times v's local feature size in M_v */
+     * v's star stay below alpha times v's local feature size in M_v */
     if (v >= ss->first_site) {
         double lfs;
-        anistar_status s = as_starset_lfs(ss, v, f->r / AS_FEATURE_ALPHA, &lfs);
+        anistar_status s = as_starset_lfs(ss, v, f->r / ss->alpha, &lfs);
         if (s != ANISTAR_OK) {
             *err = s;
             return 0;
         }
-        double x = f->r / (AS_FEATURE_ALPHA * lfs);
+        double x = f->r / (ss->alpha * lfs);
         if (x >= 1 && x > viol) {
             viol = x;
             why = AS_CAUSE_FEATURE;
@@ -154,10 +155,11 @@ typedef struct refiner {
     as_mesher_counters cnt;
     as_run_ctl *ctl;         /* the caller's side (may be NULL) */
     double t0;               /* start of the run */
-    /* stall detection: the lowest inconsistent-facet count since it was last 0, when it
-     * was reached (in insertions), and the vertices then */
+    /* stall detection (see stall_update): the lowest inconsistent-facet count seen by
+     * rule 3 since the count was last 0, when it was seen (in rule-3 insertions), and
+     * the vertices then */
     size_t inc_low;
-    uint64_t insertions, low_at;
+    uint64_t n3, low_at;
     int64_t low_vertices;
 } refiner;
 
@@ -235,20 +237,29 @@ static anistar_status drain(refiner *R) {
     return ANISTAR_OK;
 }
 
-/* The stall bookkeeping after an insertion (see refiner). */
-static void stall_update(refiner *R) {
+/*
+ * The stall bookkeeping. design: rule 3 runs only when no other rule applies, so the
+ * inconsistent-facet count it sees is the residue of an otherwise finished mesh; in a run
+ * that converges that residue falls to 0 (paper 4.3), in one that does not, rule-3
+ * insertions create as many inconsistencies as they remove. The counter is the number of
+ * rule-3 insertions since the residue last reached a new low; a count of 0 at any time
+ * starts over. Rule-1 growth, whatever its length, never counts.
+ */
+static void stall_update(refiner *R, int rule3) {
     const as_starset *ss = R->ss;
-    R->insertions++;
     if (ss->ninc == 0) {
         R->inc_low = SIZE_MAX;
-        R->low_at = R->insertions;
-        R->low_vertices = ss->n - ss->first_site;
-    } else if (ss->ninc < R->inc_low) {
+        R->low_at = R->n3;
+        return;
+    }
+    if (!rule3) return;
+    if (ss->ninc < R->inc_low) {
         R->inc_low = ss->ninc;
-        R->low_at = R->insertions;
+        R->low_at = R->n3;
         R->low_vertices = ss->n - ss->first_site;
     }
-    uint64_t stalled = R->insertions - R->low_at;
+    R->n3++;
+    uint64_t stalled = R->n3 - R->low_at;
     if (stalled > R->cnt.stall_max) R->cnt.stall_max = stalled;
 }
 
@@ -262,7 +273,7 @@ static uint64_t stall_budget(const refiner *R) {
 static anistar_status insert_point(refiner *R, const double p[3]) {
     anistar_status s = as_starset_insert(R->ss, p, NULL);
     if (s != ANISTAR_OK) return s;
-    stall_update(R);
+    stall_update(R, 0);
     return drain(R);
 }
 
@@ -297,6 +308,13 @@ anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t 
                        p[0], p[1], p[2], (int)v, r, d, (int)q, AS_NEAR_SITE);
     }
     return ANISTAR_OK;
+}
+
+/* The Euclidean distance from p to the nearest site or pole (its id in *id). */
+static double nearest_site(const as_starset *ss, const double p[3], int32_t *id) {
+    double d2;
+    if (as_kdtree_knn(ss->kd, p, 1, id, &d2) == 0) return INFINITY;
+    return sqrt(d2);
 }
 
 /* 1 if p coincides with an existing point (kd-tree nearest at distance 0). */
@@ -520,6 +538,7 @@ static anistar_status initial_points(refiner *R) {
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (initial points)");
     }
     if ((s = as_starset_add_poles(ss, smp.points, (int32_t)smp.n, 256)) != ANISTAR_OK) goto done;
+    ss->nscomp = (int32_t)smp.ncomponents;
     for (size_t c = 0; c < smp.ncomponents; c++) {
         size_t nc = 0, first = SIZE_MAX;
         for (size_t i = 0; i < smp.n; i++)
@@ -536,7 +555,9 @@ static anistar_status initial_points(refiner *R) {
         for (size_t k = 0; k < want; k++) {
             const double *p = smp.points + 3 * pick;
             if (!is_duplicate(ss, p)) {
+                int32_t gid = ss->n;
                 if ((s = insert_point(R, p)) != ANISTAR_OK) goto done;
+                ss->scomp[gid] = (int32_t)c;
                 R->cnt.initial++;
             }
             dist[pick] = -1;
@@ -625,6 +646,26 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
     return ANISTAR_OK;
 }
 
+/* Queue for rule 1 every restricted facet that violates it now (after alpha changed). */
+static anistar_status requeue_rule1(refiner *R) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        as_star *st = ss->stars[v];
+        for (int32_t i = 0; i < st->nrf; i++) {
+            as_rfacet *f = &st->rf[i];
+            if (f->queued & 1) continue;
+            double v1 = as_rule1_violation(ss, R->prm, v, f, NULL, &s);
+            if (s != ANISTAR_OK) return s;
+            if (v1 <= 0) continue;
+            as_qentry q = {v1, as_facet_key(f->g), v};
+            if ((s = as_queue_push(R->ctx, &R->q[0], q)) != ANISTAR_OK) return s;
+            f->queued |= 1;
+        }
+    }
+    return ANISTAR_OK;
+}
+
 /* Re-queue every inconsistent facet (the exact set) whose entry was dropped. */
 static anistar_status requeue_inconsistent(refiner *R, int *pushed) {
     as_starset *ss = R->ss;
@@ -651,7 +692,7 @@ static void publish(refiner *R, double now) {
     p->seconds = now - R->t0;
     p->estimate_vertices = R->cnt.estimate_vertices;
     p->estimate_bytes = R->cnt.estimate_bytes;
-    p->stalled = R->insertions - R->low_at;
+    p->stalled = R->n3 - R->low_at;
     p->max_stall = stall_budget(R);
     /* design: the rate of the refinement so far, over the vertices still expected */
     double refine_s = now - R->t0 - R->cnt.t_init, left = p->estimate_vertices - (double)p->vertices;
@@ -680,7 +721,7 @@ static void stop_message(refiner *R) {
     case ANISTAR_STOP_MAX_VERTICES:
         as_fail(R->ctx, ANISTAR_INCOMPLETE,
                 "mesher: stopped at max_vertices (%lld vertices; %zu inconsistent facets left; "
-                "estimate %.0f)",
+                "the up-front estimate was %.0f)",
                 v, ss->ninc, R->cnt.estimate_vertices);
         break;
     case ANISTAR_STOP_MAX_SECONDS:
@@ -689,12 +730,19 @@ static void stop_message(refiner *R) {
                 R->prm->max_seconds, v, ss->ninc);
         break;
     case ANISTAR_STOP_STALL:
-        as_fail(R->ctx, ANISTAR_INCOMPLETE,
-                "mesher: stalled: %llu insertions without the inconsistent-facet count falling "
-                "below %zu (now %zu, %lld vertices): the metric field or the parameters leave "
-                "inconsistencies that refinement does not resolve (try a larger r0, a smaller "
-                "gamma0, or a smoother metric)",
-                (unsigned long long)(R->insertions - R->low_at), R->inc_low, ss->ninc, v);
+        if (R->inc_low == SIZE_MAX)
+            as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                    "mesher: stalled: %zu inconsistent facets keep coming back to the "
+                    "consistency rule without being killed (%lld vertices)",
+                    ss->ninc, v);
+        else
+            as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                    "mesher: stalled: %llu consistency insertions (rule 3) since the count of "
+                    "inconsistent facets they faced was last at a new low (%zu; now %zu, %lld "
+                    "vertices): the metric field or the parameters leave inconsistencies that "
+                    "refinement does not resolve (try a larger r0, a smaller gamma0, or a "
+                    "smoother metric)",
+                    (unsigned long long)(R->n3 - R->low_at), R->inc_low, ss->ninc, v);
         break;
     case ANISTAR_STOP_REQUESTED:
         as_fail(R->ctx, ANISTAR_INCOMPLETE,
@@ -737,7 +785,10 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     int64_t maxv = prm->max_vertices > 0 ? prm->max_vertices : AS_STARSET_MAX_IDS - 1024;
     if (maxv > AS_STARSET_MAX_IDS - 1024) maxv = AS_STARSET_MAX_IDS - 1024;
     anistar_status s = as_starset_init(ss, ctx, surf, field);
+    if (prm->alpha0 > 0) ss->alpha = prm->alpha0;
     int complete = 0;
+    anistar_mesh *done = NULL; /* the output built when no rule applied */
+    int fixes = 0;             /* passes that inserted the points the final checks found */
     /* design: the up-front estimate refuses at once a run that cannot fit (DESIGN.md 4.5) */
     if (s == ANISTAR_OK)
         s = as_mesher_estimate(ss, prm, &R.cnt.estimate_vertices, &R.cnt.estimate_bytes);
@@ -764,7 +815,49 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if (rule == JOB_NONE) {
             int pushed = 0;
             if (ss->ninc == 0) {
-                complete = 1;
+                /* design: no rule applies: the final checks decide. A wrong topology
+                 * (components, Euler characteristic, orientation) means the feature
+                 * size was overestimated: halve alpha and refine on (paper 2.3: any
+                 * sizing field below sf works); below AS_FEATURE_ALPHA_MIN, stop. */
+                int ok = 0, refinable = 0;
+                uint64_t sig = 0;
+                if ((s = as_mesher_output(ss, prm, &R.cnt, 1, &done)) != ANISTAR_OK) break;
+                if ((s = as_mesher_certify(ss, done, &ok, &refinable, &sig)) != ANISTAR_OK)
+                    break;
+                if (ok) {
+                    complete = 1;
+                    break;
+                }
+                if (refinable && sig == AS_CERT_FIDELITY && fixes < AS_FIX_PASSES) {
+                    /* design: an edge that bridges or cuts through S is refined where it
+                     * misses S (Boissonnat-Oudot: insert where the restricted Delaunay
+                     * triangulation is wrong), not by a smaller size everywhere */
+                    as_mesh_free(done);
+                    done = NULL;
+                    fixes++;
+                    size_t added = 0;
+                    for (size_t k = 0; k < ss->nfix && s == ANISTAR_OK; k++) {
+                        const double *F = ss->fix + 4 * k;
+                        if (is_duplicate(ss, F)) continue;
+                        int32_t near = -1;
+                        double d = nearest_site(ss, F, &near);
+                        if (!(d > AS_NEAR_SITE * F[3])) continue; /* found twice in a pass */
+                        if ((s = insert_point(&R, F)) != ANISTAR_OK) break;
+                        R.cnt.topology++;
+                        added++;
+                    }
+                    if (s != ANISTAR_OK) break;
+                    if (added) continue;
+                }
+                if (refinable && 0.5 * ss->alpha >= AS_FEATURE_ALPHA_MIN) {
+                    as_mesh_free(done);
+                    done = NULL;
+                    ss->alpha *= 0.5;
+                    R.cnt.halvings++;
+                    if ((s = requeue_rule1(&R)) != ANISTAR_OK) break;
+                    continue;
+                }
+                R.cnt.stop_reason = ANISTAR_STOP_UNCERTIFIED;
                 break;
             }
             /* design: inconsistent facets whose queue entry was consumed without killing
@@ -786,7 +879,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             R.cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
             break;
         }
-        if (R.insertions - R.low_at >= stall_budget(&R)) {
+        if (R.n3 - R.low_at >= stall_budget(&R)) {
             R.cnt.stop_reason = ANISTAR_STOP_STALL;
             break;
         }
@@ -815,6 +908,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
         }
         if ((s = as_refine_check_point(ss, p, v, f.g, f.r)) != ANISTAR_OK) break;
+        if (rule == JOB_RULE3) stall_update(&R, 1); /* the residue this insertion faces */
         if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
         R.cnt.rule[rule]++;
         if (rule == JOB_RULE1) R.cnt.cause[cause]++;
@@ -822,17 +916,40 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     double t2 = now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
+    if (s != ANISTAR_OK && done) {
+        as_mesh_free(done);
+        done = NULL;
+    }
     if (s == ANISTAR_OK) {
         R.cnt.t_total = t2 - t0;
-        if (!complete) stop_message(&R);
+        if (!done) stop_message(&R);
         char msg[AS_ERRMSG_SIZE];
         snprintf(msg, sizeof msg, "%s", ctx->last_error);
-        s = as_mesher_output(ss, prm, &R.cnt, complete, out);
-        /* design: a run is complete only when its output passes the final checks
-         * (anistar_mesher_run's contract); a failed check is named in the message */
-        if (s == ANISTAR_OK && complete) {
-            int ok = 0;
-            s = as_mesher_certify(ss, *out, &ok);
+        if (done) {
+            *out = done; /* the checked output (certified, or not: the message says why) */
+            done = NULL;
+            (*out)->stats.complete = complete;
+        } else {
+            s = as_mesher_output(ss, prm, &R.cnt, 0, out);
+        }
+        if (s == ANISTAR_OK && complete && prm->optimize) {
+            /* the optimised mesh is a new output: checked again */
+            int stopped = 0;
+            s = as_mesher_optimize(ss, prm, ctl ? &ctl->stop : NULL, out, &stopped);
+            if (s == ANISTAR_OK && stopped) {
+                /* the mesh stays certified; the run was asked to stop all the same */
+                complete = 0;
+                R.cnt.stop_reason = ANISTAR_STOP_REQUESTED;
+                (*out)->stats.complete = 0;
+                as_fail(ctx, ANISTAR_INCOMPLETE,
+                        "mesher: stopped on request during the vertex optimisation (the mesh "
+                        "of the refinement is complete; %llu vertices moved so far)",
+                        (unsigned long long)(*out)->stats.optimize_moved);
+                snprintf(msg, sizeof msg, "%s", ctx->last_error);
+            }
+            int ok = 0, refinable = 0;
+            uint64_t sig = 0;
+            if (s == ANISTAR_OK) s = as_mesher_certify(ss, *out, &ok, &refinable, &sig);
             if (s == ANISTAR_OK && !ok) {
                 complete = 0;
                 R.cnt.stop_reason = ANISTAR_STOP_UNCERTIFIED;
@@ -840,13 +957,15 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                 snprintf(msg, sizeof msg, "%s", ctx->last_error);
             }
         }
-        if (s == ANISTAR_OK && complete && prm->optimize) s = as_mesher_optimize(ss, prm, out);
         if (s == ANISTAR_OK) {
             double t3 = now_seconds();
             anistar_mesh_stats *S = &(*out)->stats;
+            S->seconds_refine = R.cnt.t_refine;
             S->seconds_output = t3 - t2;
             S->seconds_total = t3 - t0;
             S->stop_reason = R.cnt.stop_reason;
+            S->feature_alpha = ss->alpha;
+            S->feature_halvings = R.cnt.halvings;
             S->peak_bytes = ctx->peak - bytes0;
             if (!complete) s = as_fail(ctx, ANISTAR_INCOMPLETE, "%s", msg);
         } else if (*out) {

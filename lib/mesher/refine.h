@@ -30,7 +30,7 @@ void as_queue_free(anistar_context *ctx, as_queue *q);
  * Rule-1 violation of facet f of star v: the largest of r/r0, gamma/gamma0 (largest
  * pairwise distortion of the vertices' metrics, when all three are sites), with
  * approx > 0 dist/approx (distance from the facet's centroid to S), and
- * r/(AS_FEATURE_ALPHA lfs_v) (v's local feature size in M_v, as_starset_lfs), among
+ * r/(ss->alpha lfs_v) (v's local feature size in M_v, as_starset_lfs), among
  * those >= 1; 0 when the facet satisfies rule 1. *cause (optional) receives the
  * AS_CAUSE_* of the largest ratio; *err surface errors (then 0 is returned).
  */
@@ -39,6 +39,10 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
 /* A refinement point closer than AS_NEAR_SITE times its facet's radius (in the star's
  * metric) to an existing site is a bug trap (as_refine_check_point). */
 #define AS_NEAR_SITE 1e-9
+
+/* Passes of the final checks whose fidelity failures are refined locally (the points of
+ * S the offending edges miss) before alpha is halved. */
+#define AS_FIX_PASSES 32
 
 /*
  * The bug trap in front of every refinement insertion: p, the refinement point of facet

@@ -23,11 +23,15 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
     as_metric_frame *m = as_alloc_array(ss->ctx, cap, sizeof *m);
     as_star **st = as_alloc_array(ss->ctx, cap, sizeof *st);
     uint32_t *sp = as_alloc_array(ss->ctx, cap, sizeof *sp);
-    if (!x || !m || !st || !sp) {
+    double *lf = as_alloc_array(ss->ctx, cap, sizeof *lf);
+    int32_t *sc = as_alloc_array(ss->ctx, cap, sizeof *sc);
+    if (!x || !m || !st || !sp || !lf || !sc) {
         as_free(ss->ctx, x, cap * 3 * sizeof *x);
         as_free(ss->ctx, m, cap * sizeof *m);
         as_free(ss->ctx, st, cap * sizeof *st);
         as_free(ss->ctx, sp, cap * sizeof *sp);
+        as_free(ss->ctx, lf, cap * sizeof *lf);
+        as_free(ss->ctx, sc, cap * sizeof *sc);
         return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (points)");
     }
     if (old) {
@@ -35,20 +39,28 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
         memcpy(m, ss->mf, old * sizeof *m);
         memcpy(st, ss->stars, old * sizeof *st);
         memcpy(sp, ss->stamp, old * sizeof *sp);
+        memcpy(lf, ss->lfs, old * sizeof *lf);
+        memcpy(sc, ss->scomp, old * sizeof *sc);
     }
     for (size_t i = old; i < cap; i++) {
         st[i] = NULL;
         sp[i] = 0;
+        lf[i] = NAN;
+        sc[i] = -1;
     }
     as_free(ss->ctx, ss->xyz, old * 3 * sizeof *x);
     as_free(ss->ctx, ss->mf, old * sizeof *m);
     as_free(ss->ctx, ss->stars, old * sizeof *st);
     as_free(ss->ctx, ss->stamp, old * sizeof *sp);
+    as_free(ss->ctx, ss->lfs, old * sizeof *lf);
+    as_free(ss->ctx, ss->scomp, old * sizeof *sc);
     ss->xyz = x;
     ss->env.xyz = x;
     ss->mf = m;
     ss->stars = st;
     ss->stamp = sp;
+    ss->lfs = lf;
+    ss->scomp = sc;
     ss->cap = (int32_t)cap;
     return ANISTAR_OK;
 }
@@ -278,6 +290,8 @@ anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_su
     ss->n = 8;
     ss->first_site = 8;
     if ((s = as_kdtree_new(ctx, &ss->kd)) != ANISTAR_OK) return s;
+    if ((s = as_feature_build(ctx, surf, &ss->feat)) != ANISTAR_OK) return s;
+    ss->alpha = AS_FEATURE_ALPHA;
     if ((s = as_boxindex_new(ctx, &ss->bi)) != ANISTAR_OK) return s;
     ss->spare = as_alloc(ctx, sizeof *ss->spare);
     if (!ss->spare) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
@@ -302,6 +316,10 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->mf, cap * sizeof *ss->mf);
     as_free(ctx, ss->stars, cap * sizeof *ss->stars);
     as_free(ctx, ss->stamp, cap * sizeof *ss->stamp);
+    as_free(ctx, ss->lfs, cap * sizeof *ss->lfs);
+    as_free(ctx, ss->scomp, cap * sizeof *ss->scomp);
+    as_feature_free(ctx, &ss->feat);
+    as_free(ctx, ss->fix, ss->cap_fix * 4 * sizeof *ss->fix);
     as_free(ctx, ss->tab, ss->tab_cap * sizeof *ss->tab);
     as_free(ctx, ss->inc, ss->cap_inc * sizeof *ss->inc);
     as_free(ctx, ss->ev, ss->cap_ev * sizeof *ss->ev);
@@ -317,6 +335,7 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->keep, ss->cap_keep * sizeof *ss->keep);
     as_idlist_free(ctx, &ss->cand);
     as_idlist_free(ctx, &ss->ids);
+    as_idlist_free(ctx, &ss->fids);
     as_star_scratch_free(ctx, &ss->sc);
     if (ss->kd) as_kdtree_free(ctx, ss->kd);
     if (ss->bi) as_boxindex_free(ctx, ss->bi);
@@ -958,9 +977,13 @@ anistar_status as_starset_grow_star(as_starset *ss, as_star *st, const as_metric
 uint32_t as_starset_next_epoch(as_starset *ss) { return next_epoch(ss); }
 
 anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lfs) {
-    (void)ss;
-    (void)v;
-    (void)need;
-    *lfs = INFINITY;
-    return ANISTAR_OK;
+    if (!isnan(ss->lfs[v])) {
+        *lfs = ss->lfs[v];
+        return ANISTAR_OK;
+    }
+    int exact = 0;
+    anistar_status s = as_feature_lfs(ss->ctx, &ss->feat, &ss->mf[v], ss->xyz + 3 * (size_t)v,
+                                      need, &ss->fids, lfs, &exact);
+    if (s == ANISTAR_OK && exact) ss->lfs[v] = *lfs;
+    return s;
 }

@@ -24,6 +24,7 @@
 #include "core.h"
 #include "geom/boxindex.h"
 #include "geom/kdtree.h"
+#include "mesher/feature.h"
 #include "mesher/star.h"
 #include "surface/field.h"
 
@@ -62,6 +63,14 @@ typedef struct as_starset {
     size_t ninc, cap_inc;
 
     as_kdtree *kd;           /* poles and sites */
+    as_feature feat;         /* medial points: the local feature size */
+    double *lfs;             /* per id: lfs in its own metric (NaN: not computed yet) */
+    int32_t *scomp;          /* per id: the sample component of an initial site, or -1 */
+    int32_t nscomp;          /* components of the surface sample */
+    double alpha;            /* the feature-size fraction in force (AS_FEATURE_ALPHA...) */
+    double *fix;             /* points of S the final checks found the mesh missing (4 per
+                                point: x, y, z, the radius of the edge that missed it) */
+    size_t nfix, cap_fix;
     as_boxindex *bi;         /* conflict-zone box of each star, keyed by global id */
 
     /* events since the refiner last drained them */
@@ -74,7 +83,7 @@ typedef struct as_starset {
 
     /* scratch */
     as_star_scratch sc;
-    as_idlist cand, ids;
+    as_idlist cand, ids, fids; /* fids: the feature-size queries' own */
     int32_t *list, *batch;   /* changed stars; insertion batch */
     int32_t *hints;          /* per changed star: a tet in conflict with p */
     size_t cap_hints;
@@ -152,13 +161,17 @@ anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_m
 /*
  * v's local feature size in M_v (paper 2.3: the lfs part of the sizing field): the M_v
  * distance from v to the nearest medial point of the surface (ss->feat); +inf when there
- * is none. Only needed to decide "r >= AS_FEATURE_ALPHA lfs": when a cheap lower bound
+ * is none. Only needed to decide "r >= alpha lfs": when a cheap lower bound
  * already exceeds need, *lfs receives that bound; otherwise the exact value, cached.
  */
 anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lfs);
 
-/* Facets of a star stay below this fraction of its center's local feature size. */
-#define AS_FEATURE_ALPHA 0.5
+/* Facets of a star stay below alpha times its center's local feature size (ss->alpha):
+ * AS_FEATURE_ALPHA at the start, halved each time the final checks of a run find the
+ * topology wrong, down to AS_FEATURE_ALPHA_MIN (docs/algorithm.md: measured on thin
+ * tori, plates, close spheres and the mesh inputs). */
+#define AS_FEATURE_ALPHA 1.0
+#define AS_FEATURE_ALPHA_MIN 0.125
 
 /* Evaluate the metric at p into a frame. EINVAL when the field fails or M is not SPD. */
 anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf);

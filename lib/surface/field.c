@@ -5,6 +5,7 @@
 #include "surface/field.h"
 
 #include "geom/linalg.h"
+#include "geom/metric.h"
 #include "io/meshio.h"
 
 #include <ctype.h>
@@ -61,6 +62,20 @@ static anistar_status fail_at(anistar_context *ctx, const char *what, const doub
                    p[2]);
 }
 
+/* The same, naming the offending tensor too; note (may be "") follows the point. */
+static anistar_status fail_tensor_at(anistar_context *ctx, const char *what, const double t[6],
+                                     const double p[3], const char *note) {
+    return as_fail(ctx, ANISTAR_EINVAL,
+                   "metric: %s (%.17g %.17g %.17g %.17g %.17g %.17g) at (%.17g, %.17g, %.17g)%s",
+                   what, t[0], t[1], t[2], t[3], t[4], t[5], p[0], p[1], p[2], note);
+}
+
+static int finite6(const double t[6]) {
+    for (int i = 0; i < 6; i++)
+        if (!isfinite(t[i])) return 0;
+    return 1;
+}
+
 void as_field_tensor(const double u[9], const double e[3], double m[6]) {
     double emax = fmax(e[0], fmax(e[1], e[2])), lo = emax / AS_FIELD_MAX_ANISOTROPY;
     double w[3];
@@ -75,18 +90,28 @@ void as_field_tensor(const double u[9], const double e[3], double m[6]) {
     }
 }
 
+/*
+ * as_field_check_tensor — validate m, then clamp its anisotropy in place.
+ * design:
+ *   1. validity is the mesher's own test, as_metric_frame_init (finite entries, positive
+ *      definite, F's eigenvalue ratio <= 1e12): a tensor the mesher would refuse is
+ *      refused here, before the clamp could make it acceptable;
+ *   2. a valid tensor whose F has an eigenvalue ratio above AS_FIELD_MAX_ANISOTROPY is
+ *      rebuilt from the frame's eigenpairs with its smaller eigenvalues raised
+ *      (as_field_tensor); otherwise m is left bit for bit.
+ */
 int as_field_check_tensor(double m[6]) {
-    for (int i = 0; i < 6; i++)
-        if (!isfinite(m[i])) return -1;
-    double w[3], v[9];
-    if (as_sym3_eigen(m, w, v)) return -1;
-    if (!(w[0] > 0) || !isfinite(w[2])) return -1;
-    double lim = AS_FIELD_MAX_ANISOTROPY * AS_FIELD_MAX_ANISOTROPY;
-    if (w[2] / w[0] <= lim) return 0;
-    double e[3];
-    for (int k = 0; k < 3; k++) e[k] = sqrt(w[k]);
-    as_field_tensor(v, e, m);
+    as_metric_frame mf;
+    if (as_metric_frame_init(&mf, m)) return -1;
+    if (mf.e[2] <= AS_FIELD_MAX_ANISOTROPY * mf.e[0]) return 0;
+    as_field_tensor(mf.u, mf.e, m);
     return 0;
+}
+
+/* 1 if the mesher accepts m as it is (as_metric_frame_init), 0 otherwise. */
+static int fl_frame_ok(const double m[6]) {
+    as_metric_frame mf;
+    return as_metric_frame_init(&mf, m) == 0;
 }
 
 /* ---- SPEC parsing --------------------------------------------------------------- */
@@ -317,6 +342,18 @@ anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_fi
 
 /* ---- local evaluation ----------------------------------------------------------- */
 
+static inline int fl_usable(double e) { return isfinite(e) && e <= AS_FIELD_MAX_EIGENVALUE; }
+
+/* A gradient or hessian eigenvalue of F that is not finite or above the limit. */
+static anistar_status fl_too_large(anistar_context *ctx, const as_field *fl, double e,
+                                   const double p[3]) {
+    return as_fail(ctx, ANISTAR_EINVAL,
+                   "metric: the %s field's eigenvalue %g is not finite or exceeds %g at "
+                   "(%.17g, %.17g, %.17g)",
+                   fl->kind == AS_FIELD_HESSIAN ? "hessian" : "gradient", e,
+                   AS_FIELD_MAX_EIGENVALUE, p[0], p[1], p[2]);
+}
+
 /* The tangential part of a field at p. */
 typedef struct fl_local {
     int singular;      /* grad f vanishes: no normal */
@@ -326,6 +363,14 @@ typedef struct fl_local {
     double eiso;       /* singular points: the largest eigenvalue computable without n */
 } fl_local;
 
+/*
+ * fl_local_eval — the tangential eigenpairs of a curvature, gradient or hessian field at p.
+ * Returns EINVAL (naming p) when E, its derivatives or the curvature of S are not finite,
+ * and, for gradient and hessian, when an eigenvalue of F is not finite or exceeds
+ * AS_FIELD_MAX_EIGENVALUE: E's derivatives do not depend on f, so such a value is E's
+ * own and is never replaced. Curvature eigenvalues that large (|k| > 1e150: next to a
+ * singular point of f, where |grad f| -> 0) are left to as_field_eval's e_n^2 I.
+ */
 static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, const double p[3],
                                     fl_local *L) {
     memset(L, 0, sizeof *L);
@@ -339,6 +384,8 @@ static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, co
             L->singular = 1;
             return ANISTAR_OK;
         }
+        if (!isfinite(fr.k[0]) || !isfinite(fr.k[1]))
+            return fail_at(ctx, "the curvature of S is not finite", p);
         memcpy(L->u, fr.d, 6 * sizeof(double));
         memcpy(L->u + 6, fr.n, 3 * sizeof(double));
         L->e1 = pow(fmax(fl->eps, fabs(fr.k[0])), fl->power);
@@ -357,7 +404,7 @@ static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, co
             return fail_at(ctx, "the scalar field or its gradient is not finite", p);
         if (L->singular) {
             L->eiso = 1 + fl->phi * v3_norm(gE);
-            return ANISTAR_OK;
+            return fl_usable(L->eiso) ? ANISTAR_OK : fl_too_large(ctx, fl, L->eiso, p);
         }
         double gnE = v3_dot(gE, n), gt[3];
         for (int i = 0; i < 3; i++) gt[i] = gE[i] - gnE * n[i];
@@ -371,7 +418,7 @@ static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, co
         }
         L->e1 = 1 + fl->phi * gtn;
         L->e2 = 1;
-        return ANISTAR_OK;
+        return fl_usable(L->e1) ? ANISTAR_OK : fl_too_large(ctx, fl, L->e1, p);
     }
     /* hessian */
     double gE[3], hE[6];
@@ -386,7 +433,7 @@ static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, co
     if (L->singular) {
         double wm = fmax(w[0], fmax(w[1], w[2]));
         L->eiso = pow(fmax(fl->eps, wm), fl->power);
-        return ANISTAR_OK;
+        return fl_usable(L->eiso) ? ANISTAR_OK : fl_too_large(ctx, fl, L->eiso, p);
     }
     double t1[3], t2[3], h1[3], h2[3];
     tangent_basis(n, t1, t2);
@@ -401,16 +448,30 @@ static anistar_status fl_local_eval(anistar_context *ctx, const as_field *fl, co
     L->raw = w1;
     L->e1 = pow(fmax(fl->eps, w1), fl->power);
     L->e2 = pow(fmax(fl->eps, w2), fl->power);
+    if (!fl_usable(L->e1)) return fl_too_large(ctx, fl, L->e1, p);
+    if (!fl_usable(L->e2)) return fl_too_large(ctx, fl, L->e2, p);
     return ANISTAR_OK;
 }
-
-static inline int fl_usable(double e) { return isfinite(e) && e <= AS_FIELD_MAX_EIGENVALUE; }
 
 static void iso(double e, double m[6]) {
     m[0] = m[3] = m[5] = e * e;
     m[1] = m[2] = m[4] = 0;
 }
 
+/*
+ * as_field_eval — the tensor of fl at p (field.h).
+ * design:
+ *   1. blended fields (triangle meshes): as_blend_eval of validated vertex tensors, then
+ *      as_field_check_tensor;
+ *   2. custom: the callback's tensor must pass as_field_check_tensor (the mesher's test,
+ *      before any clamp); otherwise EINVAL naming p and the six values — never repaired;
+ *   3. curvature, gradient, hessian: fl_local_eval (which refuses non-finite values and,
+ *      for gradient and hessian, eigenvalues above AS_FIELD_MAX_EIGENVALUE); the
+ *      documented special points: a singular point of f gives the isotropic e^2 I, a
+ *      curvature eigenvalue above the limit (next to one) gives e_n^2 I; the result must
+ *      pass as_metric_frame_init (it fails only by under- or overflow of tiny or huge
+ *      eps, e_n), else EINVAL naming p and the tensor.
+ */
 anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const double p[3],
                              double m[6]) {
     if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
@@ -418,8 +479,9 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
     if (fl->blend) { /* curvature and sol on triangle meshes */
         anistar_status st = as_blend_eval(ctx, fl->blend, p, m);
         if (st) return st;
-        if (as_field_check_tensor(m))
-            return fail_at(ctx, "the blended tensor is not positive definite", p);
+        if (as_field_check_tensor(m)) /* m is left as it was on failure */
+            return fail_tensor_at(ctx, "the blended tensor is not finite and positive definite",
+                                  m, p, "");
         return ANISTAR_OK;
     }
     switch (fl->kind) {
@@ -433,12 +495,15 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
         if (st) return st;
         double t[6] = {0, 0, 0, 0, 0, 0};
         if (fl->fn(p, n, t, fl->user)) return fail_at(ctx, "the metric callback failed", p);
-        for (int i = 0; i < 6; i++)
-            if (!isfinite(t[i]))
-                return fail_at(ctx, "the metric callback returned a non-finite tensor", p);
-        if (as_field_check_tensor(t))
-            return fail_at(ctx, "the metric callback returned a tensor that is not positive "
-                                "definite", p);
+        if (!finite6(t))
+            return fail_tensor_at(ctx, "the metric callback returned a non-finite tensor", t, p,
+                                  "");
+        if (as_field_check_tensor(t)) /* t is left as it was on failure */
+            return fail_tensor_at(ctx,
+                                  "the metric callback returned a tensor that is not "
+                                  "positive definite",
+                                  t, p, " (symmetric positive definite with a condition number "
+                                        "<= 1e24 needed)");
         memcpy(m, t, sizeof t);
         return ANISTAR_OK;
     }
@@ -449,15 +514,16 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
         anistar_status st = fl_local_eval(ctx, fl, p, &L);
         if (st) return st;
         if (L.singular) {
-            iso(fl_usable(L.eiso) ? fmax(fl->en, L.eiso) : fl->en, m);
-            return ANISTAR_OK;
+            iso(fmax(fl->en, L.eiso), m);
+        } else if (!fl_usable(L.e1) || !fl_usable(L.e2)) {
+            iso(fl->en, m); /* curvature only (fl_local_eval): next to a singular point */
+        } else {
+            double e[3] = {L.e1, L.e2, fl->en};
+            as_field_tensor(L.u, e, m);
         }
-        if (!fl_usable(L.e1) || !fl_usable(L.e2)) {
-            iso(fl->en, m);
-            return ANISTAR_OK;
-        }
-        double e[3] = {L.e1, L.e2, fl->en};
-        as_field_tensor(L.u, e, m);
+        if (!fl_frame_ok(m))
+            return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p,
+                                  " (eps or e_n too small or too large)");
         return ANISTAR_OK;
     }
     default:
@@ -495,8 +561,8 @@ anistar_status as_field_uniform(anistar_context *ctx, const as_surface *s, const
     memcpy(t, m, sizeof t);
     if (as_field_check_tensor(t))
         return as_fail(ctx, ANISTAR_EINVAL,
-                       "uniform metric: tensor (%g %g %g %g %g %g) is not finite and positive "
-                       "definite",
+                       "uniform metric: tensor (%.17g %.17g %.17g %.17g %.17g %.17g) is not "
+                       "finite and positive definite (with a condition number <= 1e24)",
                        m[0], m[1], m[2], m[3], m[4], m[5]);
     as_field *fl;
     anistar_status st = fl_new(ctx, s, AS_FIELD_UNIFORM, &fl);
@@ -520,12 +586,19 @@ anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_fie
 }
 
 /*
- * Defaults from the initial sample (paper 5.4): hessian's eps (1e-3 times the largest
- * tangential |H| eigenvalue, 1 if that is 0) when need_eps, then e_n = the largest
- * tangential eigenvalue of F over the sample when need_en.
+ * fl_defaults — defaults from the initial sample (paper 5.4): hessian's eps when need_eps,
+ * then e_n when need_en. spec names the field in messages.
+ * design:
+ *   1. eps = 1e-3 x the largest tangential |H| eigenvalue w over the sample's regular
+ *      points; when that is 0 (E's Hessian vanishes tangentially at every sample point,
+ *      e.g. a linear E) there is no size to derive: EINVAL naming a sample point, never
+ *      a made-up eps (the user may give eps=E for a uniform metric);
+ *   2. e_n = the largest tangential eigenvalue of F over the sample's regular points
+ *      (curvature eigenvalues above AS_FIELD_MAX_EIGENVALUE left out); when no point
+ *      gives one (every sample point singular), EINVAL: give en=N.
  */
-static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_eps,
-                                  int need_en) {
+static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, const char *spec,
+                                  int need_eps, int need_en) {
     as_point_sample smp;
     anistar_status st = as_surface_sample(ctx, fl->surf, AS_FIELD_SAMPLE_POINTS, &smp);
     if (st) {
@@ -533,15 +606,41 @@ static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_e
         snprintf(msg, sizeof msg, "%s", ctx->last_error);
         return as_fail(ctx, st, "metric: cannot sample the surface for default e_n: %s", msg);
     }
+    int sl = clip_len(strlen(spec));
     if (need_eps) {
         double raw = 0;
+        const double *regular = NULL; /* a regular sample point, for the message */
+        int usable = 0;
         fl->eps = 1; /* any positive value: raw does not depend on it */
         for (size_t i = 0; i < smp.n && !st; i++) {
             fl_local L;
             st = fl_local_eval(ctx, fl, smp.points + 3 * i, &L);
-            if (!st && !L.singular && fl_usable(L.raw) && L.raw > raw) raw = L.raw;
+            if (st || L.singular) continue;
+            if (!regular) regular = smp.points + 3 * i;
+            if (!fl_usable(L.raw)) continue;
+            usable = 1;
+            if (L.raw > raw) raw = L.raw;
         }
-        fl->eps = raw > 0 ? 1e-3 * raw : 1.0;
+        if (!st && !(1e-3 * raw > 0)) {
+            const double *q = regular ? regular : smp.points;
+            if (regular && !usable)
+                st = as_fail(ctx, ANISTAR_EINVAL,
+                             "metric '%.*s': the Hessian of E exceeds %g on S (tangentially, at "
+                             "every sample point; e.g. at (%.17g, %.17g, %.17g))",
+                             sl, spec, AS_FIELD_MAX_EIGENVALUE, q[0], q[1], q[2]);
+            else if (regular)
+                st = as_fail(ctx, ANISTAR_EINVAL,
+                             "metric '%.*s': the Hessian of E is 0 on S (tangentially, at every "
+                             "sample point; e.g. at (%.17g, %.17g, %.17g)): no size to derive; "
+                             "give eps=E for a uniform metric",
+                             sl, spec, q[0], q[1], q[2]);
+            else
+                st = as_fail(ctx, ANISTAR_EINVAL,
+                             "metric '%.*s': every sample point of S is a singular point of f "
+                             "(e.g. at (%.17g, %.17g, %.17g)): no size to derive; give eps=E",
+                             sl, spec, q[0], q[1], q[2]);
+        }
+        if (!st) fl->eps = 1e-3 * raw;
     }
     if (need_en && !st) {
         double en = 0;
@@ -551,7 +650,12 @@ static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_e
             if (st || L.singular || !fl_usable(L.e1) || !fl_usable(L.e2)) continue;
             en = fmax(en, fmax(L.e1, L.e2));
         }
-        fl->en = en > 0 ? en : 1.0;
+        if (!st && !(en > 0))
+            st = as_fail(ctx, ANISTAR_EINVAL,
+                         "metric '%.*s': no sample point of S gives a tangential eigenvalue "
+                         "(e.g. at (%.17g, %.17g, %.17g)): no default e_n; give en=N",
+                         sl, spec, smp.points[0], smp.points[1], smp.points[2]);
+        if (!st) fl->en = en;
     }
     as_surface_sample_free(ctx, &smp);
     return st;
@@ -563,9 +667,12 @@ static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, int need_e
  * design:
  *   1. curvature: the surface's own degree-2 jets (AS_JET_K2) or new ones for other
  *      degree/k; e_i = max(eps, |k_i|)^power; e_n = option or max_v e_1(v) (paper 5.4);
- *      M(v) = U diag(e^2) U^T, U = [d0, d1, n];
+ *      M(v) = U diag(e^2) U^T, U = [d0, d1, n]; a curvature that is not finite or an
+ *      e_i above AS_FIELD_MAX_EIGENVALUE is EINVAL naming the vertex (a mesh has no
+ *      singular point to excuse it), as is an M(v) the mesher would refuse;
  *      sol: the file's tensors, count checked against the input's vertices, mapped past
- *      dropped (unused) vertices, each validated;
+ *      dropped (unused) vertices, each validated by as_field_check_tensor (EFORMAT naming
+ *      the vertex, and its position when it is used);
  *   2. r_B = option rb or the mean distance to the k nearest vertices (paper's default);
  *   3. as_blend_create over the surface's kd-tree of vertices.
  */
@@ -605,12 +712,19 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
         fl->power = sp->has_power ? sp->power : 1.0;
         double en = 0;
         for (size_t v = 0; v < nv; v++) {
-            const double *J = vj + AS_MESH_VJET * v;
+            const double *J = vj + AS_MESH_VJET * v, *x = mi.xyz + 3 * v;
             double e1 = pow(fmax(fl->eps, fabs(J[3])), fl->power);
             double e2 = pow(fmax(fl->eps, fabs(J[4])), fl->power);
-            if (fl_usable(e1) && fl_usable(e2)) en = fmax(en, fmax(e1, e2));
+            if (!isfinite(J[3]) || !isfinite(J[4]) || !fl_usable(e1) || !fl_usable(e2)) {
+                st = as_fail(ctx, ANISTAR_EINVAL,
+                             "metric '%s': the curvatures (%g, %g) at the vertex (%.17g, "
+                             "%.17g, %.17g) give an eigenvalue that is not finite or exceeds %g",
+                             sp->name, J[3], J[4], x[0], x[1], x[2], AS_FIELD_MAX_EIGENVALUE);
+                goto done;
+            }
+            en = fmax(en, fmax(e1, e2));
         }
-        fl->en = sp->has_en ? sp->en : (en > 0 ? en : 1.0);
+        fl->en = sp->has_en ? sp->en : en;
         for (size_t v = 0; v < nv; v++) {
             const double *J = vj + AS_MESH_VJET * v;
             double u[9], e[3];
@@ -619,8 +733,14 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
             e[0] = pow(fmax(fl->eps, fabs(J[3])), fl->power);
             e[1] = pow(fmax(fl->eps, fabs(J[4])), fl->power);
             e[2] = fl->en;
-            if (!fl_usable(e[0]) || !fl_usable(e[1])) e[0] = e[1] = e[2];
             as_field_tensor(u, e, tens + 6 * v);
+            if (!fl_frame_ok(tens + 6 * v)) {
+                st = fail_tensor_at(ctx, "the curvature tensor of a vertex is not finite and "
+                                         "positive definite",
+                                    tens + 6 * v, mi.xyz + 3 * v,
+                                    " (eps or en too small or too large)");
+                goto done;
+            }
         }
     } else {
         st = as_sol_read(ctx, sp->path, &nfile, &file);
@@ -634,14 +754,20 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
         for (size_t i = 0; i < nfile; i++) {
             double t[6];
             memcpy(t, file + 6 * i, sizeof t);
+            int32_t v = mi.vmap ? mi.vmap[i] : (int32_t)i;
             if (as_field_check_tensor(t)) {
+                char at[96] = " (a vertex of no triangle)";
+                if (v >= 0) {
+                    const double *x = mi.xyz + 3 * (size_t)v;
+                    snprintf(at, sizeof at, " at (%.17g, %.17g, %.17g)", x[0], x[1], x[2]);
+                }
                 st = as_fail(ctx, ANISTAR_EFORMAT,
-                             "%s: the tensor of vertex %zu (%g %g %g %g %g %g) is not positive "
-                             "definite",
-                             sp->path, i + 1, t[0], t[1], t[2], t[3], t[4], t[5]);
+                             "%s: the tensor of vertex %zu%s (%.17g %.17g %.17g %.17g %.17g "
+                             "%.17g) is not finite and positive definite (with a condition "
+                             "number <= 1e24)",
+                             sp->path, i + 1, at, t[0], t[1], t[2], t[3], t[4], t[5]);
                 goto done;
             }
-            int32_t v = mi.vmap ? mi.vmap[i] : (int32_t)i;
             if (v >= 0) memcpy(tens + 6 * (size_t)v, t, sizeof t);
         }
     }
@@ -724,7 +850,7 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
         break;
     }
     fl->en = sp.has_en ? sp.en : 0;
-    if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, need_eps, !sp.has_en);
+    if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

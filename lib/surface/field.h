@@ -4,8 +4,12 @@
  *
  * A field maps a point p of S to a metric tensor M_p = F^T F (6 doubles m11 m12 m13 m22
  * m23 m33). Every tensor it returns is symmetric positive definite with finite entries
- * and an eigenvalue ratio of F of at most AS_FIELD_MAX_ANISOTROPY (M's: its square):
- * smaller eigenvalues of F are raised to (largest / AS_FIELD_MAX_ANISOTROPY).
+ * (the mesher's own test, as_metric_frame_init, accepts it) and an eigenvalue ratio of F
+ * of at most AS_FIELD_MAX_ANISOTROPY (M's: its square): smaller eigenvalues of F are
+ * raised to (largest / AS_FIELD_MAX_ANISOTROPY). That clamp regularises valid tensors
+ * only: a tensor that is not finite and SPD (or that as_metric_frame_init refuses, F's
+ * condition number above 1e12) is an error naming the point (EINVAL; EFORMAT for .sol
+ * files), never repaired or replaced (DESIGN.md 4.7).
  *
  * Kinds (F = U diag(e) U^T with U = [u1, u2, n], n the outward normal):
  *  - uniform: a constant tensor (euclidean: I; uniform,h=H: I/H^2);
@@ -14,7 +18,11 @@
  *  - gradient:EXPR and shock (paper 5.2.1 corrected, DESIGN.md 4.7): g = the tangential
  *    part of grad E; e = 1 + phi |g| along g, 1 across it;
  *  - hessian:EXPR: |H| = V |Lambda| V^T of the Hessian of E, restricted to the tangent
- *    plane (2x2: T^T |H| T), its eigenvalues w_i: e_i = max(eps, w_i)^power;
+ *    plane (2x2: T^T |H| T), its eigenvalues w_i: e_i = max(eps, w_i)^power; eps defaults
+ *    to 1e-3 x the largest w over the initial sample, and when that is 0 (E's Hessian
+ *    vanishes tangentially at every sample point, e.g. a linear E) creation fails with
+ *    EINVAL naming a sample point: there is no size to derive (give eps=E: a uniform
+ *    metric);
  *  - e_n, F's eigenvalue along the normal (paper 5.4), defaults to the largest tangential
  *    eigenvalue e_1 over the initial sample of S (as_surface_sample, 256 points) for the
  *    kinds curvature, gradient, shock, hessian; option en=N sets it.
@@ -24,8 +32,13 @@
  *  - flat and parabolic points: the eps clamp keeps the eigenvalues positive;
  *  - singular points of f (grad f = 0, no normal): the isotropic tensor e^2 I with e the
  *    largest eigenvalue the field would use there: max(e_n, tangential eigenvalues
- *    computed without projection); also where a tangential eigenvalue is not finite or
- *    exceeds AS_FIELD_MAX_EIGENVALUE (next to a singular point): e_n^2 I.
+ *    computed without projection); for curvature also where a curvature eigenvalue
+ *    exceeds AS_FIELD_MAX_EIGENVALUE (|k| > 1e150: next to a singular point, where
+ *    |grad f| -> 0): e_n^2 I.
+ * Not special, errors (EINVAL naming the point): E, its derivatives or the curvature not
+ * finite; a gradient or hessian eigenvalue not finite or above AS_FIELD_MAX_EIGENVALUE
+ * (E's own, whatever f does); a result that as_metric_frame_init refuses (squares of
+ * tiny or huge eps, e_n under- or overflowing).
  * Points off S: the field is evaluated at p as given, with the normal and curvatures of
  * the level set of f through p (project first for the value on S).
  *
@@ -35,10 +48,12 @@
  *    vertices (default AS_JET_K2 = 16 for degree 2, AS_JET_K4 = 32 for 3 and 4; at most
  *    AS_JET_MAX_POINTS), oriented outward, gives k_i and u_i at each vertex;
  *    e_i = max(eps, |k_i|)^power as above; e_n defaults to the largest e_1 over the
- *    vertices (paper 5.4);
+ *    vertices (paper 5.4); a curvature or eigenvalue that is not finite or above
+ *    AS_FIELD_MAX_EIGENVALUE at a vertex is EINVAL naming it (a mesh has no singular
+ *    point to excuse it);
  *  - sol:FILE: one tensor per vertex of the input mesh (Medit .sol, io/meshio.h), the
- *    count must equal the input's vertex count (EFORMAT otherwise), each finite and SPD
- *    (EFORMAT naming the vertex); blended the same way (so a vertex's own tensor is not
+ *    count must equal the input's vertex count (EFORMAT otherwise), each finite and SPD as
+ *    as_field_check_tensor decides (EFORMAT naming the vertex and its position); blended the same way (so a vertex's own tensor is not
  *    reproduced exactly unless its neighbours agree; a constant field is);
  *  - r_B defaults to the paper's: the mean over the vertices of their mean distance to
  *    their k nearest other vertices; option rb=R sets it.
@@ -119,14 +134,18 @@ struct anistar_metric {
 
 /* A field parsed from spec on surface s (which must outlive it). Computes the default e_n
  * (and hessian's default eps) from the initial sample of s, so it may return the
- * sampler's errors (ENOSURFACE, EINVAL). sol:FILE needs a triangle-mesh surface (EINVAL
+ * sampler's errors (ENOSURFACE, EINVAL), and EINVAL (naming spec and a sample point) when
+ * a default cannot be derived: hessian's eps when the Hessian of E is 0 on the sample,
+ * e_n when no sample point has a usable tangential eigenvalue; and the evaluation errors
+ * of as_field_eval met at sample points. sol:FILE needs a triangle-mesh surface (EINVAL
  * otherwise) and returns the .sol reader's errors (EIO, EFORMAT) and EFORMAT for a
  * vertex-count mismatch or a tensor that is not SPD; degree, k, rb on a surface that is
  * not a triangle mesh: EINVAL; k outside [coefficients(degree), AS_JET_MAX_POINTS]:
  * EINVAL. */
 anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
                                   as_field **out);
-/* A constant tensor (validated: finite, SPD; anisotropy clamped). s may be NULL. */
+/* A constant tensor (validated by as_field_check_tensor: EINVAL naming the six values;
+ * anisotropy clamped). s may be NULL. */
 anistar_status as_field_uniform(anistar_context *ctx, const as_surface *s, const double m[6],
                                 as_field **out);
 /* A custom callback field on s. */
@@ -135,8 +154,10 @@ anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_fie
 void as_field_free(as_field *f);
 
 /*
- * The tensor at p. EINVAL (naming p) when f or E is not finite there, when a custom
- * callback fails or returns a non-finite or non-positive-definite tensor.
+ * The tensor at p. EINVAL (naming p, and the six values when a tensor is at fault) when f
+ * or E is not finite there, when a custom callback fails or returns a tensor that
+ * as_field_check_tensor refuses (never repaired), and in the error cases of the kinds
+ * above. m is written only on success for custom fields.
  */
 anistar_status as_field_eval(anistar_context *ctx, const as_field *f, const double p[3],
                              double m[6]);
@@ -145,8 +166,10 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *f, const doub
  * anisotropy clamp of e. */
 void as_field_tensor(const double u[9], const double e[3], double m[6]);
 
-/* Validate a tensor (finite, SPD) and clamp its anisotropy in place (M's eigenvalue ratio
- * at most AS_FIELD_MAX_ANISOTROPY^2; untouched if within). Returns 0, or -1 if invalid. */
+/* Validate a tensor with the mesher's test, as_metric_frame_init (finite, SPD, M's
+ * condition number <= 1e24), then clamp its anisotropy in place (M's eigenvalue ratio at
+ * most AS_FIELD_MAX_ANISOTROPY^2; bit for bit untouched if within). Returns 0, or -1 if
+ * invalid (m untouched): the clamp never makes an invalid tensor valid. */
 int as_field_check_tensor(double m[6]);
 
 #endif /* ANISTAR_FIELD_H */

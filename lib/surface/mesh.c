@@ -21,7 +21,8 @@
  *    vertex it is the jet's normal, and the curvatures are the jet's;
  *  - sample: input vertices, spread over every connected component (farthest-point
  *    sampling per component, shares proportional to the vertex counts, at least one);
- *    `spacing` is the mean edge length.
+ *    `area` is the exact area of each component (the sum of its triangles' areas),
+ *    `spacing` the mean edge length.
  * Per-vertex jets: degree 2 on the AS_JET_K2 nearest vertices (Euclidean, the vertex
  * included), skipping neighbours whose angle-weighted vertex normal points against the
  * vertex's (n_u . n_v <= -0.5: the other side of a thin plate), oriented by the
@@ -466,10 +467,22 @@ static anistar_status ms_sample(anistar_context *ctx, const as_surface *s, size_
     double *work = as_alloc_array(c, ncand_max, 4 * sizeof(double));
     out->points = as_alloc_array(c, total, 3 * sizeof(double));
     out->component = as_alloc_array(c, total, sizeof(int32_t));
+    out->area = as_alloc_array(c, nc, sizeof(double));
     anistar_status st = ANISTAR_OK;
-    if (!start || !order || !work || !out->points || !out->component) {
+    if (!start || !order || !work || !out->points || !out->component || !out->area) {
         st = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
         goto done;
+    }
+    /* the exact area of each component: its triangles' areas */
+    memset(out->area, 0, nc * sizeof(double));
+    for (size_t t = 0; t < ms->nt; t++) {
+        const int32_t *T = ms->tri + 3 * t;
+        const double *a = ms->xyz + 3 * (size_t)T[0], *b = ms->xyz + 3 * (size_t)T[1],
+                     *d = ms->xyz + 3 * (size_t)T[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+               v[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]}, w[3];
+        v3_cross(u, v, w);
+        out->area[ms->vcomp[T[0]]] += 0.5 * v3_norm(w);
     }
     memset(start, 0, (nc + 1) * sizeof(size_t));
     for (size_t v = 0; v < nv; v++) start[ms->vcomp[v] + 1]++;
@@ -540,6 +553,7 @@ done:
     if (st) {
         as_free(c, out->points, total * 3 * sizeof(double));
         as_free(c, out->component, total * sizeof(int32_t));
+        as_free(c, out->area, nc * sizeof(double));
         memset(out, 0, sizeof *out);
     }
     as_free(c, start, (nc + 1) * sizeof(size_t));

@@ -168,6 +168,7 @@ void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp) {
     if (!smp) return;
     as_free(ctx, smp->points, smp->n * 3 * sizeof(double));
     as_free(ctx, smp->component, smp->n * sizeof(int32_t));
+    as_free(ctx, smp->area, smp->ncomponents * sizeof(double));
     memset(smp, 0, sizeof *smp);
 }
 
@@ -802,66 +803,160 @@ anistar_status as_fsurface_frame(anistar_context *ctx, const as_surface *s, cons
 
 /* ---- initial points (sampling) -------------------------------------------------- */
 
-/* One grid level. Vertex (i, j, k) is o + h (i, j, k), index i + nv (j + nv k). */
+/*
+ * The sampler (contract: as_surface_sample in surface.h). One grid of SM_N^3 cells over
+ * the bounding cube; its vertices and the witnesses (points found off the grid, inside
+ * parts thinner than a cell) are the nodes of a union-find of the regions f < 0 and
+ * f >= 0; every crossing of S between two nodes links an inside region to an outside
+ * region, and each such pair is one component of S.
+ */
+#define SM_N 64
+#define SM_NV (SM_N + 1) /* vertices per axis (index arithmetic with constants: no divisions) */
+/* A cell is resolved when the second differences of f at its corners (the largest sum
+ * over the axes) are at most SM_RESOLVED times their largest first differences: f bends
+ * little across the cell, its corner signs tell where S is. A torus tube of radius 2.8
+ * cells is resolved (ratio about 0.55); parts thinner than about two cells are not. */
+#define SM_RESOLVED 0.75
+/* At most this many descents per call (each costs about 10 to 70 evaluations). */
+#define SM_MAX_DESCENTS 32768
+#define SM_MAX_WITNESSES 65536
+/* Evaluations per descent, chords tried per witness to join its neighbours and to find
+ * its crossing. */
+#define SM_DESCENT_EVALS 64
+#define SM_LINK_TRIES 8
+#define SM_PAIR_TRIES 4
+/* Components of area below SM_SMALL_AREA h^2 (a sphere of radius 0.8 h) that lie within
+ * 2h of one of their points along the axes get their area from a local grid of SM_SMALL_N
+ * cells per axis over their extent (the lattice sees them with a few crossings at best),
+ * for at most SM_SMALL_MAX of them. */
+#define SM_SMALL_AREA 8.0
+#define SM_SMALL_N 12
+#define SM_SMALL_MAX 256
+
+enum { SM_NEAR = 1, SM_UNRES = 2, SM_MIXED = 4, SM_FRAG = 8 };
+
+/* The grid. Vertex (i, j, k) is o + h (i, j, k), index i + nv (j + nv k); cell (i, j, k)
+ * has that vertex as its lowest corner, index i + n (j + n k). */
 typedef struct sm_grid {
-    size_t n, nv, count;
+    size_t n, nv, count, ncells;
     double h, o[3];
-    float *f;     /* values (FLT_MAX beyond the sphere) */
-    int8_t *sg;   /* -1 inside (f < 0), +1 otherwise (beyond the sphere included) */
-    int32_t *uf;  /* union-find parents */
-    int8_t *ball; /* 1 if the vertex is inside the ball */
+    double *f;      /* values (0 beyond the sphere) */
+    int8_t *sg;     /* -1 inside (f < 0), +1 otherwise (beyond the sphere included) */
+    int8_t *ball;   /* 1 if the vertex is inside the ball */
+    float *K;       /* sum over the axes of |second difference of f| */
+    float *L;       /* norm over the axes of the larger one-sided |first difference| */
+    uint8_t *cell;  /* cell flags: SM_NEAR (S may meet it), SM_UNRES (not resolved),
+                       SM_MIXED (its corners have both signs) */
+    int32_t *whead; /* per cell: first witness inside it, -1 */
+    int32_t *xhead; /* per cell: first crossing record with its midpoint inside it, -1 */
+    uint8_t *ek;    /* 3 per vertex: unresolved cells around its edges along +x, +y, +z */
+    int32_t *groot; /* per vertex: its region's root after the unions along grid edges */
 } sm_grid;
 
-/* A grid edge with a sign change: its lower vertex, axis and the (inside, outside) region
- * roots it joins. */
-typedef struct sm_edge {
-    uint32_t v;
-    uint32_t rin, rout;
-    uint8_t axis;
-} sm_edge;
+/* A witness: a point off the grid standing for the region of its sign around it. */
+typedef struct sm_wit {
+    double p[3];
+    double n[3];    /* the thin direction (across the part) when thin */
+    int32_t next;   /* next witness of the same cell, -1 */
+    int8_t sg;      /* sign of f at p (-1 or +1, as sm_grid.sg) */
+    int8_t thin;    /* 1: S crosses both ways along n within 2h (a part thinner than 4h) */
+} sm_wit;
 
-/* Sub-grid components found by descent: one surface point each. */
-typedef struct sm_extra {
-    double p[3];     /* the point on S */
-    double probe[3]; /* the point beyond S the descent reached (for de-duplication) */
-} sm_extra;
+/* A crossing record: a segment with exactly one crossing of S, between the inside node
+ * nin (f < 0 at a) and the outside node nout (at b). */
+typedef struct sm_rec {
+    double a[3], b[3];
+    uint32_t nin, nout;
+    int32_t comp; /* component, after sm_components */
+    int32_t next; /* next record of the same cell (by midpoint), -1 */
+    uint32_t ord; /* creation order (ties of the sort) */
+} sm_rec;
+
+/* A crossing of a lattice edge (of an unresolved cell): the Crofton estimate of the area. */
+typedef struct sm_crof {
+    double x[3];
+    size_t edge;  /* 3 v + axis: the edge from vertex v along the axis */
+    int32_t rec;  /* the edge's record when it is that edge's only crossing, else -1 */
+    int32_t comp; /* after sm_components (-1: find the nearest record's) */
+} sm_crof;
+
+/* A distinct (inside root, outside root) pair: one component. */
+typedef struct sm_pair {
+    uint32_t rin, rout, rec;
+} sm_pair;
 
 typedef struct sm_state {
     anistar_context *ctx;
     const as_surface *s;
     sm_grid g;
-    sm_edge *edges;
-    size_t nedges, capedges;
-    sm_extra *extra;
-    size_t nextra, capextra;
-    size_t npairs; /* distinct (rin, rout) pairs */
+    int32_t *uf; /* union-find over the nodes: grid vertices, then witnesses */
+    size_t capuf;
+    sm_wit *wit;
+    size_t nwit, capwit;
+    sm_rec *rec;
+    size_t nrec, caprec;
+    sm_crof *crof;
+    size_t ncrof, capcrof;
+    sm_pair *pairs; /* nrec entries; the first ncomp, after sm_components, the distinct ones */
+    size_t ncomp;
+    int32_t *gidx;  /* per vertex: its gradient in gval, -1 */
+    double *gval;
+    size_t ngval, capgval;
+    int frag_candidates; /* some resolved mixed cell has a corner where K > SM_RESOLVED L
+                            (sm_areas' fragment cells, only then) */
 } sm_state;
 
-static void sm_grid_free(anistar_context *ctx, sm_grid *g) {
-    as_free(ctx, g->f, g->count * sizeof(float));
-    as_free(ctx, g->sg, g->count);
-    as_free(ctx, g->uf, g->count * sizeof(int32_t));
-    as_free(ctx, g->ball, g->count);
-    g->f = NULL;
-    g->sg = NULL;
-    g->uf = NULL;
-    g->ball = NULL;
-}
-
 static void sm_state_free(sm_state *st) {
-    sm_grid_free(st->ctx, &st->g);
-    as_free(st->ctx, st->edges, st->capedges * sizeof(sm_edge));
-    as_free(st->ctx, st->extra, st->capextra * sizeof(sm_extra));
-    st->edges = NULL;
-    st->extra = NULL;
-    st->nedges = st->capedges = st->nextra = st->capextra = 0;
+    anistar_context *ctx = st->ctx;
+    sm_grid *g = &st->g;
+    as_free(ctx, g->f, g->count * sizeof(double));
+    as_free(ctx, g->sg, g->count);
+    as_free(ctx, g->ball, g->count);
+    as_free(ctx, g->K, g->count * sizeof(float));
+    as_free(ctx, g->L, g->count * sizeof(float));
+    as_free(ctx, g->cell, g->ncells);
+    as_free(ctx, g->whead, g->ncells * sizeof(int32_t));
+    as_free(ctx, g->xhead, g->ncells * sizeof(int32_t));
+    as_free(ctx, g->ek, 3 * g->count);
+    as_free(ctx, g->groot, g->count * sizeof(int32_t));
+    as_free(ctx, st->uf, st->capuf * sizeof(int32_t));
+    as_free(ctx, st->wit, st->capwit * sizeof(sm_wit));
+    as_free(ctx, st->rec, st->caprec * sizeof(sm_rec));
+    as_free(ctx, st->crof, st->capcrof * sizeof(sm_crof));
+    as_free(ctx, st->pairs, st->nrec * sizeof(sm_pair));
+    as_free(ctx, st->gidx, g->count * sizeof(int32_t));
+    as_free(ctx, st->gval, st->capgval * sizeof(double));
+    memset(st, 0, sizeof *st);
 }
 
 static inline void sm_vertex(const sm_grid *g, size_t idx, double p[3]) {
-    size_t i = idx % g->nv, j = (idx / g->nv) % g->nv, k = idx / (g->nv * g->nv);
+    size_t i = idx % SM_NV, j = (idx / SM_NV) % SM_NV, k = idx / (SM_NV * SM_NV);
     p[0] = g->o[0] + g->h * (double)i;
     p[1] = g->o[1] + g->h * (double)j;
     p[2] = g->o[2] + g->h * (double)k;
+}
+
+/* The position and sign of a node. */
+static inline void sm_node(const sm_state *st, uint32_t node, double p[3], int *sg) {
+    if (node < st->g.count) {
+        sm_vertex(&st->g, node, p);
+        *sg = st->g.sg[node];
+    } else {
+        const sm_wit *w = &st->wit[node - st->g.count];
+        memcpy(p, w->p, 3 * sizeof(double));
+        *sg = w->sg;
+    }
+}
+
+/* The cell holding p (clamped to the grid). */
+static inline size_t sm_cell_of(const sm_grid *g, const double p[3], size_t c[3]) {
+    for (int i = 0; i < 3; i++) {
+        double t = floor((p[i] - g->o[i]) / g->h);
+        if (!(t >= 0)) t = 0;
+        if (t > (double)(g->n - 1)) t = (double)(g->n - 1);
+        c[i] = (size_t)t;
+    }
+    return c[0] + g->n * (c[1] + g->n * c[2]);
 }
 
 static inline int32_t uf_find(int32_t *uf, int32_t x) {
@@ -871,6 +966,8 @@ static inline int32_t uf_find(int32_t *uf, int32_t x) {
     }
     return x;
 }
+/* The root of a set is its smallest node: the result does not depend on the order of
+ * the unions. */
 static inline void uf_union(int32_t *uf, int32_t a, int32_t b) {
     a = uf_find(uf, a);
     b = uf_find(uf, b);
@@ -878,13 +975,158 @@ static inline void uf_union(int32_t *uf, int32_t a, int32_t b) {
     else if (b < a) uf[a] = b;
 }
 
-static int sm_edge_cmp(const void *pa, const void *pb) {
-    const sm_edge *a = pa, *b = pb;
-    if (a->rin != b->rin) return a->rin < b->rin ? -1 : 1;
-    if (a->rout != b->rout) return a->rout < b->rout ? -1 : 1;
-    if (a->v != b->v) return a->v < b->v ? -1 : 1;
-    return (a->axis > b->axis) - (a->axis < b->axis);
+/* ---- crossings along a short segment ---- */
+
+#define SM_SCAN_MAX CR_MAX_CAND
+/* The crossings of S along [a, b] (both inside the ball), in order from a: brackets
+ * [ua, ub] of the parameter (ua == ub for an exact zero), found by the sampling of
+ * as_surface_crossing (Hermite tests on value and slope, splitting down to 1e-7 R).
+ * Touching points (double roots) and zeros at the ends are not counted. */
+typedef struct sm_scan {
+    int n;
+    double ua[SM_SCAN_MAX], ub[SM_SCAN_MAX], fa[SM_SCAN_MAX], fb[SM_SCAN_MAX];
+} sm_scan;
+
+static anistar_status sm_scan_segment(sm_state *st, const double a[3], const double b[3],
+                                      sm_scan *out) {
+    const as_surface *s = st->s;
+    out->n = 0;
+    cr_chord c;
+    c.s = s;
+    c.ctx = st->ctx;
+    for (int i = 0; i < 3; i++) {
+        c.A[i] = a[i];
+        c.B[i] = b[i];
+        c.D[i] = b[i] - a[i];
+    }
+    c.len = v3_norm(c.D);
+    c.evals = 0;
+    if (!(c.len > 0)) return ANISTAR_OK;
+    double spacing = AS_CROSSING_SPACING * s->radius;
+    c.umin = fmin(0.25, 1e-7 * s->radius / c.len);
+    c.uval = fmin(1.0, spacing / 8 / c.len);
+    int npieces = (int)ceil(c.len / spacing * (1 - 1e-9));
+    if (npieces < 1) npieces = 1;
+    if (npieces > 64) npieces = 64;
+    cr_cands cs;
+    cs.n = 0;
+    memcpy(cs.ref, a, sizeof cs.ref);
+    double uprev = 0, fprev, dprev;
+    int okprev;
+    anistar_status rs = cr_eval(&c, 0, &fprev, &dprev, &okprev);
+    if (rs) return rs;
+    for (int i = 1; i <= npieces; i++) {
+        double u = i == npieces ? 1.0 : (double)i / npieces, f, dd;
+        int ok;
+        rs = cr_eval(&c, u, &f, &dd, &ok);
+        if (rs) return rs;
+        if (f == 0 && i < npieces) cr_add(&c, &cs, u, 0, u, 0);
+        cr_piece pc = {uprev, fprev, dprev, u, f, dd, okprev, ok};
+        rs = cr_piece_scan(&c, &cs, pc);
+        if (rs) return rs;
+        uprev = u;
+        fprev = f;
+        dprev = dd;
+        okprev = ok;
+    }
+    for (int i = 0; i < cs.n; i++) {
+        const cr_cand *k = &cs.c[i];
+        if (k->ua == k->ub && (k->fa != 0 || k->ua <= 0 || k->ua >= 1)) continue;
+        int j = out->n++;
+        /* insertion by ua */
+        while (j > 0 && out->ua[j - 1] > k->ua) {
+            out->ua[j] = out->ua[j - 1];
+            out->ub[j] = out->ub[j - 1];
+            out->fa[j] = out->fa[j - 1];
+            out->fb[j] = out->fb[j - 1];
+            j--;
+        }
+        out->ua[j] = k->ua;
+        out->ub[j] = k->ub;
+        out->fa[j] = k->fa;
+        out->fb[j] = k->fb;
+    }
+    return ANISTAR_OK;
 }
+
+/* The crossing of bracket i of a scan of [a, b], refined (Illinois) to 1e-3 h. */
+static anistar_status sm_scan_point(sm_state *st, const sm_scan *sc, int i, const double a[3],
+                                    const double b[3], double x[3]) {
+    double u = sc->ua[i];
+    if (sc->ub[i] > sc->ua[i]) {
+        cr_chord c;
+        c.s = st->s;
+        c.ctx = st->ctx;
+        for (int k = 0; k < 3; k++) {
+            c.A[k] = a[k];
+            c.B[k] = b[k];
+            c.D[k] = b[k] - a[k];
+        }
+        c.len = v3_norm(c.D);
+        c.evals = 0;
+        anistar_status rs =
+            cr_refine(&c, sc->ua[i], sc->fa[i], sc->ub[i], sc->fb[i], 1e-3 * st->g.h / c.len, &u);
+        if (rs) return rs;
+    }
+    for (int k = 0; k < 3; k++) x[k] = (1 - u) * a[k] + u * b[k];
+    return ANISTAR_OK;
+}
+
+/* ---- records ---- */
+
+static anistar_status sm_add_rec(sm_state *st, const double a[3], const double b[3],
+                                 uint32_t nin, uint32_t nout, int32_t *index) {
+    if (as_grow(st->ctx, (void **)&st->rec, &st->caprec, st->nrec + 1, sizeof(sm_rec)))
+        return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory (crossings)");
+    sm_rec *r = &st->rec[st->nrec];
+    memcpy(r->a, a, sizeof r->a);
+    memcpy(r->b, b, sizeof r->b);
+    r->nin = nin;
+    r->nout = nout;
+    r->comp = -1;
+    r->next = -1;
+    r->ord = (uint32_t)st->nrec;
+    if (index) *index = (int32_t)st->nrec;
+    st->nrec++;
+    return ANISTAR_OK;
+}
+
+/* A record for bracket i of the scan of the segment from node p (point pa) to node q
+ * (point pb), oriented inside -> outside. */
+static anistar_status sm_add_bracket(sm_state *st, const sm_scan *sc, int i, const double pa[3],
+                                     const double pb[3], uint32_t p, int sgp, uint32_t q,
+                                     int32_t *index) {
+    double x0[3], x1[3];
+    for (int k = 0; k < 3; k++) {
+        x0[k] = (1 - sc->ua[i]) * pa[k] + sc->ua[i] * pb[k];
+        x1[k] = (1 - sc->ub[i]) * pa[k] + sc->ub[i] * pb[k];
+    }
+    if (sc->ua[i] == sc->ub[i]) { /* an exact zero: the whole segment brackets it */
+        memcpy(x0, pa, sizeof x0);
+        memcpy(x1, pb, sizeof x1);
+    }
+    return sgp < 0 ? sm_add_rec(st, x0, x1, p, q, index) : sm_add_rec(st, x1, x0, q, p, index);
+}
+
+/* The record of the grid edge from vertex u (at a, sign su) to vertex v (at b). */
+static anistar_status sm_add_edge_rec(sm_state *st, const double a[3], const double b[3],
+                                      size_t u, size_t v, int su) {
+    return su < 0 ? sm_add_rec(st, a, b, (uint32_t)u, (uint32_t)v, NULL)
+                  : sm_add_rec(st, b, a, (uint32_t)v, (uint32_t)u, NULL);
+}
+
+static anistar_status sm_add_crof(sm_state *st, const double x[3], size_t edge, int32_t rec) {
+    if (as_grow(st->ctx, (void **)&st->crof, &st->capcrof, st->ncrof + 1, sizeof(sm_crof)))
+        return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory (crossings)");
+    sm_crof *c = &st->crof[st->ncrof++];
+    memcpy(c->x, x, sizeof c->x);
+    c->edge = edge;
+    c->rec = rec;
+    c->comp = -1;
+    return ANISTAR_OK;
+}
+
+/* ---- 1. values, 2. differences, 3. cells ---- */
 
 /* Where the edge from inside-ball vertex p to beyond-ball vertex q meets the sphere. */
 static void sm_sphere_point(const as_surface *s, const double p[3], const double q[3],
@@ -899,18 +1141,323 @@ static void sm_sphere_point(const as_surface *s, const double p[3], const double
     for (int i = 0; i < 3; i++) x[i] = p[i] + t * d[i];
 }
 
+static anistar_status sm_values(sm_state *st) {
+    anistar_context *ctx = st->ctx;
+    const as_surface *s = st->s;
+    sm_grid *g = &st->g;
+    g->n = SM_N;
+    g->nv = g->n + 1;
+    g->count = g->nv * g->nv * g->nv;
+    g->ncells = g->n * g->n * g->n;
+    g->h = 2 * s->radius / (double)g->n;
+    for (int i = 0; i < 3; i++) g->o[i] = s->center[i] - s->radius;
+    g->f = as_alloc_array(ctx, g->count, sizeof(double));
+    g->sg = as_alloc(ctx, g->count);
+    g->ball = as_alloc(ctx, g->count);
+    g->K = as_alloc_array(ctx, g->count, sizeof(float));
+    g->L = as_alloc_array(ctx, g->count, sizeof(float));
+    g->cell = as_alloc(ctx, g->ncells);
+    g->whead = as_alloc_array(ctx, g->ncells, sizeof(int32_t));
+    g->xhead = as_alloc_array(ctx, g->ncells, sizeof(int32_t));
+    g->ek = as_alloc_array(ctx, g->count, 3);
+    g->groot = as_alloc_array(ctx, g->count, sizeof(int32_t));
+    st->gidx = as_alloc_array(ctx, g->count, sizeof(int32_t));
+    st->capuf = g->count;
+    st->uf = as_alloc_array(ctx, st->capuf, sizeof(int32_t));
+    if (!g->f || !g->sg || !g->ball || !g->K || !g->L || !g->cell || !g->whead || !g->xhead ||
+        !g->ek || !g->groot || !st->gidx || !st->uf) {
+        if (!st->uf) st->capuf = 0;
+        return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory (grid of %zu^3)", g->nv);
+    }
+    for (size_t idx = 0; idx < g->count; idx++) {
+        double p[3] = {g->o[0] + g->h * (double)(idx % SM_NV),
+                       g->o[1] + g->h * (double)((idx / SM_NV) % SM_NV),
+                       g->o[2] + g->h * (double)(idx / (SM_NV * SM_NV))};
+        st->uf[idx] = (int32_t)idx;
+        st->gidx[idx] = -1;
+        if (!fs_in_ball(s, p)) {
+            g->ball[idx] = 0;
+            g->sg[idx] = 1;
+            g->f[idx] = 0;
+            continue;
+        }
+        double f = fs_value(s, p);
+        if (!isfinite(f)) return fail_nonfinite(ctx, "f", p);
+        g->ball[idx] = 1;
+        g->sg[idx] = f < 0 ? -1 : 1;
+        g->f[idx] = f;
+    }
+    for (size_t c = 0; c < g->ncells; c++) g->whead[c] = g->xhead[c] = -1;
+    /* the sphere check: f < 0 on the sphere means S is not inside it */
+    size_t nv = g->nv, stride[3] = {1, nv, nv * nv};
+    for (size_t idx = 0; idx < g->count; idx++) {
+        size_t c[3] = {idx % SM_NV, (idx / SM_NV) % SM_NV, idx / (SM_NV * SM_NV)};
+        for (int ax = 0; ax < 3; ax++) {
+            if (c[ax] + 1 >= nv) continue;
+            size_t jdx = idx + stride[ax];
+            if (g->ball[idx] == g->ball[jdx] || g->sg[g->ball[idx] ? idx : jdx] > 0) continue;
+            size_t in = g->ball[idx] ? idx : jdx, outv = g->ball[idx] ? jdx : idx;
+            double p[3], q[3], x[3];
+            sm_vertex(g, in, p);
+            sm_vertex(g, outv, q);
+            sm_sphere_point(s, p, q, x);
+            double fx = fs_value(s, x);
+            if (!isfinite(fx)) return fail_nonfinite(ctx, "f", x);
+            if (fx < 0)
+                return as_fail(ctx, ANISTAR_EINVAL,
+                               "f < 0 at (%.9g, %.9g, %.9g) on the bounding sphere: the "
+                               "surface must lie strictly inside the bounding sphere "
+                               "(enlarge its radius)",
+                               x[0], x[1], x[2]);
+        }
+    }
+    return ANISTAR_OK;
+}
+
+static void sm_differences(sm_state *st) {
+    sm_grid *g = &st->g;
+    size_t nv = g->nv, stride[3] = {1, nv, nv * nv}, idx = 0;
+    for (size_t k = 0; k < nv; k++)
+        for (size_t j = 0; j < nv; j++)
+            for (size_t i = 0; i < nv; i++, idx++) {
+                g->K[idx] = g->L[idx] = 0;
+                if (!g->ball[idx]) continue;
+                size_t c[3] = {i, j, k};
+                double K = 0, L2 = 0, f = g->f[idx];
+                for (int ax = 0; ax < 3; ax++) {
+                    int lo = c[ax] > 0 && g->ball[idx - stride[ax]];
+                    int hi = c[ax] + 1 < nv && g->ball[idx + stride[ax]];
+                    double fl = lo ? g->f[idx - stride[ax]] : 0;
+                    double fh = hi ? g->f[idx + stride[ax]] : 0;
+                    if (lo && hi) K += fabs(fl - 2 * f + fh);
+                    double dl = lo ? fabs(f - fl) : 0, dh = hi ? fabs(fh - f) : 0,
+                           d = dl > dh ? dl : dh;
+                    L2 += d * d;
+                }
+                g->K[idx] = (float)fmin(K, FLT_MAX);
+                g->L[idx] = (float)fmin(sqrt(L2), FLT_MAX);
+            }
+}
+
+/* Offsets of the 8 corners of a cell from its lowest corner (bit 0: +x, 1: +y, 2: +z). */
+static inline void sm_corner_offsets(const sm_grid *g, size_t off[8]) {
+    for (int c = 0; c < 8; c++)
+        off[c] = (size_t)(c & 1) +
+                 g->nv * ((size_t)((c >> 1) & 1) + g->nv * (size_t)((c >> 2) & 1));
+}
+static inline size_t sm_cell_base(const sm_grid *g, size_t cell) {
+    (void)g;
+    return cell % SM_N + SM_NV * ((cell / SM_N) % SM_N + SM_NV * (cell / (SM_N * SM_N)));
+}
+static inline size_t sm_corner(const sm_grid *g, size_t cell, int corner) {
+    return sm_cell_base(g, cell) + (size_t)(corner & 1) +
+           SM_NV * ((size_t)((corner >> 1) & 1) + SM_NV * (size_t)((corner >> 2) & 1));
+}
+
+/* The cells around the grid edge from vertex idx along axis ax (up to 4). */
+static int sm_edge_cells(const sm_grid *g, size_t idx, int ax, size_t cells[4]) {
+    size_t n = g->n;
+    size_t c[3] = {idx % SM_NV, (idx / SM_NV) % SM_NV, idx / (SM_NV * SM_NV)};
+    int b1 = (ax + 1) % 3, b2 = (ax + 2) % 3, m = 0;
+    if (c[ax] >= n) return 0;
+    for (int d1 = 0; d1 < 2; d1++)
+        for (int d2 = 0; d2 < 2; d2++) {
+            size_t cc[3] = {c[0], c[1], c[2]};
+            if ((d1 && cc[b1] == 0) || (d2 && cc[b2] == 0)) continue;
+            cc[b1] -= (size_t)d1;
+            cc[b2] -= (size_t)d2;
+            if (cc[b1] >= n || cc[b2] >= n) continue;
+            cells[m++] = cc[0] + n * (cc[1] + n * cc[2]);
+        }
+    return m;
+}
+
+/* grad f at grid vertex v (computed once). */
+static anistar_status sm_grad(sm_state *st, size_t v, const double **gp) {
+    if (st->gidx[v] < 0) {
+        if (as_grow(st->ctx, (void **)&st->gval, &st->capgval, 3 * (st->ngval + 1), sizeof(double)))
+            return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory (gradients)");
+        double p[3], *g = st->gval + 3 * st->ngval;
+        sm_vertex(&st->g, v, p);
+        g[0] = g[1] = g[2] = 0;
+        double f = st->s->ops->eval(st->s, p, 1, g, NULL);
+        if (!isfinite(f)) return fail_nonfinite(st->ctx, "f", p);
+        st->gidx[v] = (int32_t)st->ngval++;
+    }
+    *gp = st->gval + 3 * (size_t)st->gidx[v];
+    return ANISTAR_OK;
+}
+
+/* *maybe = 1 when q = sg f may vanish in the cell, sg the sign of its corners: the
+ * largest over its corners c of the minimum over the cell of the tangent plane
+ * q(c) + sg grad f(c) . (x - c) is <= 0. For q convex the tangent planes lie below q, so a
+ * zero of q in the cell makes every plane's minimum <= 0: the test misses nothing then. */
+static anistar_status sm_plane_test(sm_state *st, size_t base, const size_t off[8], int sg,
+                                    int *maybe) {
+    const sm_grid *g = &st->g;
+    double best = -INFINITY, h = g->h;
+    for (int c = 0; c < 8; c++) {
+        size_t v = base + off[c];
+        if (!g->ball[v]) continue;
+        const double *gr = NULL;
+        anistar_status rs = sm_grad(st, v, &gr);
+        if (rs) return rs;
+        double m = sg * g->f[v];
+        for (int i = 0; i < 3; i++) {
+            double gi = sg * gr[i];
+            if ((c >> i) & 1) m -= gi > 0 ? h * gi : 0; /* x_i - c_i in [-h, 0] */
+            else m += gi < 0 ? h * gi : 0;              /* x_i - c_i in [0, h] */
+        }
+        if (m == m && m > best) best = m;
+    }
+    *maybe = !(best > 0);
+    return ANISTAR_OK;
+}
+
 /*
- * Descend (sg = +1) or ascend (sg = -1) f from grid vertex x0 within radius 2h looking
- * for a point where sg * f < 0. *found = 1 and the point in y on success.
+ * Cell flags, from the corners inside the ball. A mixed cell (corners of both signs, the
+ * ones beyond the sphere counting as outside) is near S; it is unresolved when
+ * max K > SM_RESOLVED max L over its corners, or when it reaches beyond the sphere. A
+ * cell of one sign may hide a part of S (near and unresolved) when
+ *  - its smallest |f| at a corner is at most sqrt(3)/2 max L (a first-order bound of the
+ *    drop of |f| inside it: for |f| convex its one-sided differences bound the gradient),
+ *    and
+ *  - the tangent planes at its corners do not keep |f| > 0 on it (sm_plane_test). The
+ *    first test alone keeps every cell within a cell of S, and those near steep functions
+ *    (x^8 and the like) even farther; this one dismisses them where f is nearly linear.
+ * Both are exact (they miss no zero) for |f| convex on the cell.
  */
-static anistar_status sm_descend(sm_state *st, const double x0[3], int sg, int *found,
-                                 double y[3]) {
+static anistar_status sm_classify(sm_state *st) {
+    sm_grid *g = &st->g;
+    size_t n = g->n, nv = g->nv, off[8], cell = 0;
+    sm_corner_offsets(g, off);
+    for (size_t k = 0; k < n; k++)
+        for (size_t j = 0; j < n; j++)
+            for (size_t i = 0; i < n; i++, cell++) {
+                size_t base = i + nv * (j + nv * k);
+                int neg = 0, nin = 0;
+                double mn = INFINITY, K = 0, L = 0;
+                for (int c = 0; c < 8; c++) {
+                    size_t v = base + off[c];
+                    if (!g->ball[v]) continue;
+                    nin++;
+                    neg += g->sg[v] < 0;
+                    double a = fabs(g->f[v]);
+                    if (a < mn) mn = a;
+                    if (g->K[v] > K) K = g->K[v];
+                    if (g->L[v] > L) L = g->L[v];
+                }
+                uint8_t fl = 0;
+                if (nin == 0) {
+                    fl = 0;
+                } else if (neg > 0 && neg < 8) {
+                    fl = SM_NEAR | SM_MIXED | (K > SM_RESOLVED * L || nin < 8 ? SM_UNRES : 0);
+                    if (!(fl & SM_UNRES))
+                        for (int c = 0; c < 8 && !st->frag_candidates; c++)
+                            if (g->K[base + off[c]] > SM_RESOLVED * g->L[base + off[c]])
+                                st->frag_candidates = 1;
+                } else if (mn <= 0.8660254037844386 * L) {
+                    int maybe;
+                    anistar_status rs = sm_plane_test(st, base, off, neg ? -1 : 1, &maybe);
+                    if (rs) return rs;
+                    if (maybe) fl = SM_NEAR | SM_UNRES;
+                }
+                g->cell[cell] = fl;
+            }
+    return ANISTAR_OK;
+}
+
+/* ---- 4. grid edges ---- */
+
+/*
+ * Unions along the grid edges and crossing records of their sign changes. The edges of
+ * unresolved cells are scanned for every crossing: no union across an edge that crosses
+ * S (twice: a part thinner than the cell between its ends); their crossings are kept for
+ * the Crofton estimate of the area. An edge to a vertex beyond the sphere (outside)
+ * crosses S between its inside vertex and the sphere.
+ */
+static anistar_status sm_edges(sm_state *st) {
+    sm_grid *g = &st->g;
+    size_t nv = g->nv, stride[3] = {1, nv, nv * nv}, idx = 0;
+    double h = g->h;
+    for (size_t kk = 0; kk < nv; kk++)
+        for (size_t jj = 0; jj < nv; jj++)
+            for (size_t ii = 0; ii < nv; ii++, idx++) {
+                size_t c[3] = {ii, jj, kk};
+                for (int ax = 0; ax < 3; ax++) {
+                    if (c[ax] + 1 >= nv) continue;
+                    size_t jdx = idx + stride[ax];
+                    int su = g->sg[idx], sv = g->sg[jdx];
+                    if (su == sv && g->ball[idx] && g->ball[jdx] &&
+                        g->ek[3 * idx + (size_t)ax] == 0) { /* the common case */
+                        uf_union(st->uf, (int32_t)idx, (int32_t)jdx);
+                        continue;
+                    }
+                    anistar_status rs = ANISTAR_OK;
+                    double a[3] = {g->o[0] + h * (double)ii, g->o[1] + h * (double)jj,
+                                   g->o[2] + h * (double)kk},
+                           b[3] = {a[0], a[1], a[2]};
+                    b[ax] += h;
+                    if (!g->ball[idx] || !g->ball[jdx]) {
+                        size_t in = g->ball[idx] ? idx : jdx;
+                        if (!g->ball[in] || g->sg[in] > 0) {
+                            uf_union(st->uf, (int32_t)idx, (int32_t)jdx);
+                            continue;
+                        }
+                        double x[3];
+                        if (in == idx) sm_sphere_point(st->s, a, b, x);
+                        else sm_sphere_point(st->s, b, a, x);
+                        rs = sm_add_rec(st, in == idx ? a : b, x, (uint32_t)in,
+                                        (uint32_t)(in == idx ? jdx : idx), NULL);
+                        if (rs) return rs;
+                        continue;
+                    }
+                    if (g->ek[3 * idx + (size_t)ax] == 0) {
+                        if (su == sv) uf_union(st->uf, (int32_t)idx, (int32_t)jdx);
+                        else if ((rs = sm_add_edge_rec(st, a, b, idx, jdx, su))) return rs;
+                        continue;
+                    }
+                    sm_scan sc;
+                    if ((rs = sm_scan_segment(st, a, b, &sc))) return rs;
+                    int32_t ri = -1;
+                    if (su == sv) {
+                        if (sc.n == 0) uf_union(st->uf, (int32_t)idx, (int32_t)jdx);
+                    } else if (sc.n == 1) {
+                        rs = sm_add_bracket(st, &sc, 0, a, b, (uint32_t)idx, su, (uint32_t)jdx,
+                                            &ri);
+                    } else {
+                        rs = sm_add_edge_rec(st, a, b, idx, jdx, su);
+                    }
+                    if (rs) return rs;
+                    for (int i = 0; i < sc.n; i++) {
+                        double x[3];
+                        if ((rs = sm_scan_point(st, &sc, i, a, b, x)) ||
+                            (rs = sm_add_crof(st, x, 3 * idx + (size_t)ax, ri)))
+                            return rs;
+                    }
+                }
+            }
+    if (st->frag_candidates)
+        for (size_t v = 0; v < g->count; v++) g->groot[v] = uf_find(st->uf, (int32_t)v);
+    return ANISTAR_OK;
+}
+
+/* ---- 5. witnesses ---- */
+
+/*
+ * Descend (sg = +1) or ascend (sg = -1) f from x0 within the box [lo, hi], by Newton steps
+ * toward f = 0 (slightly past it) and gradient steps; *found = 1 and the point in y when
+ * sg * f < 0 is reached.
+ */
+static anistar_status sm_descend(sm_state *st, const double x0[3], int sg, const double lo[3],
+                                 const double hi[3], int *found, double y[3]) {
     const as_surface *s = st->s;
     double h = st->g.h, x[3] = {x0[0], x0[1], x0[2]}, g[3];
     *found = 0;
     double f = s->ops->eval(s, x, 1, g, NULL);
     if (!isfinite(f)) return fail_nonfinite(st->ctx, "f", x);
-    for (int it = 0; it < 40; it++) {
+    int evals = 1;
+    while (evals < SM_DESCENT_EVALS) {
         if (sg * f < 0) {
             *found = 1;
             memcpy(y, x, sizeof x);
@@ -920,23 +1467,24 @@ static anistar_status sm_descend(sm_state *st, const double x0[3], int sg, int *
         if (!(gn2 > 0) || !isfinite(gn2)) return ANISTAR_OK;
         double gn = sqrt(gn2);
         int accepted = 0;
-        /* try Newton toward f = 0 (slightly past it), then gradient steps */
-        for (int k = 0; k < 12 && !accepted; k++) {
-            double step[3], len;
+        for (int k = 0; k < 12 && !accepted && evals < SM_DESCENT_EVALS; k++) {
+            double step[3];
             if (k == 0) {
                 for (int i = 0; i < 3; i++) step[i] = -1.5 * f * g[i] / gn2;
             } else {
                 double a = sg * h * ldexp(1.0, -(k - 1));
                 for (int i = 0; i < 3; i++) step[i] = -a * g[i] / gn;
             }
-            len = v3_norm(step);
-            if (len > h) {
+            double len = v3_norm(step);
+            if (len > h)
                 for (int i = 0; i < 3; i++) step[i] *= h / len;
-            }
             double z[3], gz[3];
             for (int i = 0; i < 3; i++) z[i] = x[i] + step[i];
-            if (v3_dist2(z, x0) > 4 * h * h) continue;
+            if (z[0] < lo[0] || z[1] < lo[1] || z[2] < lo[2] || z[0] > hi[0] || z[1] > hi[1] ||
+                z[2] > hi[2] || !fs_in_ball(s, z))
+                continue;
             double fz = s->ops->eval(s, z, 1, gz, NULL);
+            evals++;
             if (!isfinite(fz)) return fail_nonfinite(st->ctx, "f", z);
             if (sg * fz < sg * f) {
                 memcpy(x, z, sizeof z);
@@ -954,177 +1502,900 @@ static anistar_status sm_descend(sm_state *st, const double x0[3], int sg, int *
     return ANISTAR_OK;
 }
 
-/* Build one grid level and count components (pairs + sub-grid components). */
-static anistar_status sm_level(sm_state *st, size_t n) {
-    anistar_context *ctx = st->ctx;
+/* The first crossing of S from p along the unit direction d within 2h (clipped to the
+ * ball): *found and its point in x. */
+static anistar_status sm_ray(sm_state *st, const double p[3], const double d[3], int *found,
+                             double x[3]) {
     const as_surface *s = st->s;
+    double b[3], len = 2 * st->g.h;
+    *found = 0;
+    for (int it = 0; it < 8; it++, len *= 0.5) {
+        for (int i = 0; i < 3; i++) b[i] = p[i] + len * d[i];
+        if (fs_in_ball(s, b)) break;
+    }
+    if (!fs_in_ball(s, b)) return ANISTAR_OK;
+    sm_scan sc;
+    anistar_status rs = sm_scan_segment(st, p, b, &sc);
+    if (rs || sc.n == 0) return rs;
+    *found = 1;
+    return sm_scan_point(st, &sc, 0, p, b, x);
+}
+
+/* The direction across a thin part of sign sg with walls x1, x2 (x1 - x2 along d): from
+ * the gradients there (they point out of the part for sg = -1, into it for +1); d when
+ * they do not give one. */
+static anistar_status sm_across(sm_state *st, int sg, const double x1[3], const double x2[3],
+                                const double d[3], double n[3]) {
+    double g1[3] = {0, 0, 0}, g2[3] = {0, 0, 0};
+    double f1 = st->s->ops->eval(st->s, x1, 1, g1, NULL);
+    double f2 = st->s->ops->eval(st->s, x2, 1, g2, NULL);
+    if (!isfinite(f1)) return fail_nonfinite(st->ctx, "f", x1);
+    if (!isfinite(f2)) return fail_nonfinite(st->ctx, "f", x2);
+    double m[3], l1 = v3_norm(g1), l2 = v3_norm(g2);
+    if (l1 > 0 && l2 > 0 && isfinite(l1) && isfinite(l2)) {
+        for (int i = 0; i < 3; i++) m[i] = -sg * (g1[i] / l1 - g2[i] / l2);
+        double l = v3_norm(m);
+        if (l > 1e-3 && v3_dot(m, d) > 0) {
+            for (int i = 0; i < 3; i++) n[i] = m[i] / l;
+            return ANISTAR_OK;
+        }
+    }
+    double l = v3_norm(d);
+    for (int i = 0; i < 3; i++) n[i] = d[i] / l;
+    return ANISTAR_OK;
+}
+
+/* Center the point p (f of sign sg there) in its part along the direction d: halfway
+ * between the first crossings of S both ways along d within 2h (the mid-plane of a plate,
+ * the axis of a tube: *thin = 1, the direction across in n); when only one is found, h
+ * away from it (a thick part: *thin = 0). p is kept where the sign would change. */
+static anistar_status sm_center(sm_state *st, double p[3], int sg, const double dir[3],
+                                int *thin, double n[3]) {
+    double d[3], m[3], x1[3], x2[3], z[3], dn = v3_norm(dir);
+    *thin = 0;
+    if (!(dn > 0) || !isfinite(dn)) return ANISTAR_OK;
+    for (int i = 0; i < 3; i++) {
+        d[i] = dir[i] / dn;
+        m[i] = -d[i];
+    }
+    int f1, f2;
+    anistar_status rs = sm_ray(st, p, d, &f1, x1);
+    if (!rs) rs = sm_ray(st, p, m, &f2, x2);
+    if (rs || (!f1 && !f2)) return rs;
+    if (f1 && f2) {
+        for (int i = 0; i < 3; i++) z[i] = 0.5 * (x1[i] + x2[i]);
+        if ((rs = sm_across(st, sg, x1, x2, d, n))) return rs;
+    } else {
+        const double *x = f1 ? x1 : x2, *away = f1 ? m : d;
+        for (int i = 0; i < 3; i++) z[i] = x[i] + st->g.h * away[i];
+    }
+    if (!fs_in_ball(st->s, z)) return ANISTAR_OK;
+    double fz = fs_value(st->s, z);
+    if (!isfinite(fz)) return fail_nonfinite(st->ctx, "f", z);
+    if ((fz < 0 ? -1 : 1) != sg) return ANISTAR_OK;
+    memcpy(p, z, sizeof z);
+    *thin = f1 && f2;
+    return ANISTAR_OK;
+}
+
+/* A witness at p of sign sg (thin along n when thin); its cell becomes near and
+ * unresolved. */
+static anistar_status sm_add_witness(sm_state *st, const double p[3], int sg, int thin,
+                                     const double n[3]) {
     sm_grid *g = &st->g;
-    sm_grid_free(ctx, g);
-    st->nedges = 0;
-    st->nextra = 0;
-    st->npairs = 0;
-    g->n = n;
-    g->nv = n + 1;
-    g->count = g->nv * g->nv * g->nv;
-    g->h = 2 * s->radius / (double)n;
-    for (int i = 0; i < 3; i++) g->o[i] = s->center[i] - s->radius;
-    g->f = as_alloc_array(ctx, g->count, sizeof(float));
-    g->sg = as_alloc(ctx, g->count);
-    g->uf = as_alloc_array(ctx, g->count, sizeof(int32_t));
-    g->ball = as_alloc(ctx, g->count);
-    if (!g->f || !g->sg || !g->uf || !g->ball)
-        return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory (grid of %zu^3)", g->nv);
-    /* 1. values and signs */
-    size_t nv = g->nv;
-    for (size_t idx = 0; idx < g->count; idx++) {
-        double p[3];
-        sm_vertex(g, idx, p);
-        g->uf[idx] = (int32_t)idx;
-        if (!fs_in_ball(s, p)) {
-            g->ball[idx] = 0;
-            g->sg[idx] = 1;
-            g->f[idx] = FLT_MAX;
-            continue;
-        }
-        double f = fs_value(s, p);
-        if (!isfinite(f)) return fail_nonfinite(ctx, "f", p);
-        g->ball[idx] = 1;
-        g->sg[idx] = f < 0 ? -1 : 1;
-        g->f[idx] = f > FLT_MAX ? FLT_MAX : (f < -FLT_MAX ? -FLT_MAX : (float)f);
-    }
-    /* 2. regions, and the sphere check (f < 0 on the sphere: S is not inside it) */
-    size_t stride[3] = {1, nv, nv * nv};
-    for (size_t idx = 0; idx < g->count; idx++) {
-        size_t c[3] = {idx % nv, (idx / nv) % nv, idx / (nv * nv)};
-        for (int ax = 0; ax < 3; ax++) {
-            if (c[ax] + 1 >= nv) continue;
-            size_t jdx = idx + stride[ax];
-            if (g->sg[idx] == g->sg[jdx]) {
-                uf_union(g->uf, (int32_t)idx, (int32_t)jdx);
-                continue;
-            }
-            if (g->ball[idx] != g->ball[jdx]) {
-                size_t in = g->ball[idx] ? idx : jdx, outv = g->ball[idx] ? jdx : idx;
-                double p[3], q[3], x[3];
-                sm_vertex(g, in, p);
-                sm_vertex(g, outv, q);
-                sm_sphere_point(s, p, q, x);
-                double fx = fs_value(s, x);
-                if (!isfinite(fx)) return fail_nonfinite(ctx, "f", x);
-                if (fx < 0)
-                    return as_fail(ctx, ANISTAR_EINVAL,
-                                   "f < 0 at (%.9g, %.9g, %.9g) on the bounding sphere: the "
-                                   "surface must lie strictly inside the bounding sphere "
-                                   "(enlarge its radius)",
-                                   x[0], x[1], x[2]);
-            }
-        }
-    }
-    /* 3. sign-change edges and their (inside, outside) region pairs */
-    for (size_t idx = 0; idx < g->count; idx++) {
-        size_t c[3] = {idx % nv, (idx / nv) % nv, idx / (nv * nv)};
-        for (int ax = 0; ax < 3; ax++) {
-            if (c[ax] + 1 >= nv) continue;
-            size_t jdx = idx + stride[ax];
-            if (g->sg[idx] == g->sg[jdx]) continue;
-            if (as_grow(ctx, (void **)&st->edges, &st->capedges, st->nedges + 1, sizeof(sm_edge)))
-                return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory (edges)");
-            size_t in = g->sg[idx] < 0 ? idx : jdx, outv = g->sg[idx] < 0 ? jdx : idx;
-            sm_edge e = {(uint32_t)idx, (uint32_t)uf_find(g->uf, (int32_t)in),
-                         (uint32_t)uf_find(g->uf, (int32_t)outv), (uint8_t)ax};
-            st->edges[st->nedges++] = e;
-        }
-    }
-    if (st->nedges) qsort(st->edges, st->nedges, sizeof(sm_edge), sm_edge_cmp);
-    for (size_t i = 0; i < st->nedges; i++)
-        if (i == 0 || st->edges[i].rin != st->edges[i - 1].rin ||
-            st->edges[i].rout != st->edges[i - 1].rout)
-            st->npairs++;
-    /* 4. sub-grid components from local extrema */
-    size_t descents = 0;
-    for (size_t idx = 0; idx < g->count && descents < 4096; idx++) {
-        size_t c[3] = {idx % nv, (idx / nv) % nv, idx / (nv * nv)};
-        if (!g->ball[idx]) continue;
-        int interior = 1, sgv = g->sg[idx], extremum = 1;
-        float fv = g->f[idx];
-        for (int ax = 0; ax < 3 && interior && extremum; ax++) {
-            if (c[ax] == 0 || c[ax] + 1 >= nv) {
-                interior = 0;
-                break;
-            }
-            size_t nb[2] = {idx - stride[ax], idx + stride[ax]};
-            for (int m = 0; m < 2; m++) {
-                if (!g->ball[nb[m]] || g->sg[nb[m]] != sgv) {
-                    extremum = 0;
-                    break;
-                }
-                if (sgv > 0 ? g->f[nb[m]] < fv : g->f[nb[m]] > fv) extremum = 0;
-            }
-        }
-        if (!interior || !extremum) continue;
-        descents++;
-        double x0[3], y[3];
-        int found;
-        sm_vertex(g, idx, x0);
-        anistar_status rs = sm_descend(st, x0, sgv, &found, y);
-        if (rs) return rs;
-        if (!found) continue;
-        /* skip if the cell reached already has a grid vertex of y's sign */
-        int seen = 0;
+    size_t node = g->count + st->nwit, cc[3];
+    if (as_grow(st->ctx, (void **)&st->wit, &st->capwit, st->nwit + 1, sizeof(sm_wit)) ||
+        as_grow(st->ctx, (void **)&st->uf, &st->capuf, node + 1, sizeof(int32_t)))
+        return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory (witnesses)");
+    size_t cell = sm_cell_of(g, p, cc);
+    sm_wit *w = &st->wit[st->nwit++];
+    memcpy(w->p, p, sizeof w->p);
+    if (thin) memcpy(w->n, n, sizeof w->n);
+    else w->n[0] = w->n[1] = w->n[2] = 0;
+    w->sg = (int8_t)sg;
+    w->thin = (int8_t)thin;
+    w->next = g->whead[cell];
+    g->whead[cell] = (int32_t)(node - g->count);
+    g->cell[cell] |= SM_NEAR | SM_UNRES;
+    st->uf[node] = (int32_t)node;
+    return ANISTAR_OK;
+}
+
+/* 1 when a witness of sign sg lies within r of p (the cells around p's). */
+static int sm_witness_near(const sm_state *st, const double p[3], int sg, double r) {
+    const sm_grid *g = &st->g;
+    size_t cc[3], n = g->n;
+    sm_cell_of(g, p, cc);
+    for (size_t k = cc[2] > 0 ? cc[2] - 1 : 0; k <= cc[2] + 1 && k < n; k++)
+        for (size_t j = cc[1] > 0 ? cc[1] - 1 : 0; j <= cc[1] + 1 && j < n; j++)
+            for (size_t i = cc[0] > 0 ? cc[0] - 1 : 0; i <= cc[0] + 1 && i < n; i++)
+                for (int32_t w = g->whead[i + n * (j + n * k)]; w >= 0; w = st->wit[w].next)
+                    if (st->wit[w].sg == sg && v3_dist2(st->wit[w].p, p) < r * r) return 1;
+    return 0;
+}
+
+/* Continuation from p (of sign sg, in a part thin along n): steps of length `step` in 8
+ * directions across n; at a step q into a cell not yet near S, farther than h/2 from the
+ * witnesses there, the chord q -/+ h n is scanned: the interval of sign sg between two
+ * crossings nearest q (the part, found again even where n is only roughly across it)
+ * gives a witness at its middle. */
+static anistar_status sm_expand(sm_state *st, const double p[3], const double n[3], int sg,
+                                double step) {
+    sm_grid *g = &st->g;
+    double h = g->h, t1[3], t2[3], e[3] = {0, 0, 0};
+    int k = 0;
+    for (int i = 1; i < 3; i++)
+        if (fabs(n[i]) < fabs(n[k])) k = i;
+    e[k] = 1;
+    v3_cross(n, e, t1);
+    double l = v3_norm(t1);
+    for (int i = 0; i < 3; i++) t1[i] /= l;
+    v3_cross(n, t1, t2);
+    for (int a = 0; a < 8 && st->nwit < SM_MAX_WITNESSES; a++) {
+        double ca = cos(a * 0.7853981633974483), sa = sin(a * 0.7853981633974483), q[3];
+        double qa[3], qb[3];
         size_t cc[3];
         for (int i = 0; i < 3; i++) {
-            double t = floor((y[i] - g->o[i]) / g->h);
-            if (t < 0) t = 0;
-            if (t > (double)(n - 1)) t = (double)(n - 1);
-            cc[i] = (size_t)t;
+            q[i] = p[i] + step * (ca * t1[i] + sa * t2[i]);
+            qa[i] = q[i] - h * n[i];
+            qb[i] = q[i] + h * n[i];
         }
-        for (int corner = 0; corner < 8 && !seen; corner++) {
-            size_t v = (cc[0] + (corner & 1)) + nv * ((cc[1] + ((corner >> 1) & 1)) +
-                                                      nv * (cc[2] + ((corner >> 2) & 1)));
-            if (g->sg[v] == -sgv) seen = 1;
-        }
-        for (size_t e = 0; e < st->nextra && !seen; e++)
-            if (v3_dist2(st->extra[e].probe, y) < g->h * g->h) seen = 1;
-        if (seen) continue;
-        int hit;
-        double xs[3];
-        rs = as_fsurface_crossing(ctx, s, x0, y, y, &hit, xs);
+        if (!fs_in_ball(st->s, qa) || !fs_in_ball(st->s, qb) ||
+            (g->cell[sm_cell_of(g, q, cc)] & SM_NEAR) || sm_witness_near(st, q, sg, 0.5 * h))
+            continue;
+        sm_scan sc;
+        anistar_status rs = sm_scan_segment(st, qa, qb, &sc);
         if (rs) return rs;
-        if (!hit) continue;
-        if (as_grow(ctx, (void **)&st->extra, &st->capextra, st->nextra + 1, sizeof(sm_extra)))
-            return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
-        memcpy(st->extra[st->nextra].p, xs, sizeof xs);
-        memcpy(st->extra[st->nextra].probe, y, sizeof y);
-        st->nextra++;
+        if (sc.n < 2) continue;
+        double fa = fs_value(st->s, qa);
+        if (!isfinite(fa)) return fail_nonfinite(st->ctx, "f", qa);
+        int s0 = fa < 0 ? -1 : 1, best = -1;
+        double bd = INFINITY;
+        for (int j = 1; j < sc.n; j++) { /* interval j: between brackets j-1 and j */
+            int sj = (j % 2) ? -s0 : s0;
+            if (sj != sg) continue;
+            double um = 0.25 * (sc.ua[j - 1] + sc.ub[j - 1] + sc.ua[j] + sc.ub[j]);
+            double d = fabs(um - 0.5);
+            if (d < bd) {
+                bd = d;
+                best = j;
+            }
+        }
+        if (best < 0) continue;
+        double x1[3], x2[3], z[3], m[3], dir[3];
+        if ((rs = sm_scan_point(st, &sc, best, qa, qb, x1)) ||
+            (rs = sm_scan_point(st, &sc, best - 1, qa, qb, x2)))
+            return rs;
+        for (int i = 0; i < 3; i++) {
+            z[i] = 0.5 * (x1[i] + x2[i]);
+            dir[i] = x1[i] - x2[i];
+        }
+        double fz = fs_value(st->s, z);
+        if (!isfinite(fz)) return fail_nonfinite(st->ctx, "f", z);
+        if ((fz < 0 ? -1 : 1) != sg || sm_witness_near(st, z, sg, 0.25 * h)) continue;
+        if ((rs = sm_across(st, sg, x1, x2, v3_norm(dir) > 0 ? dir : n, m))) return rs;
+        if ((rs = sm_add_witness(st, z, sg, 1, m))) return rs;
     }
     return ANISTAR_OK;
 }
 
-/* Pick up to q edges of edges[0..m) by farthest-point sampling of their midpoints (among
- * at most 8 q candidates, a regular stride through the list) and append their crossings to
- * out. work holds 4 m doubles. */
-static anistar_status sm_pick(sm_state *st, const sm_edge *edges, size_t m, size_t q,
-                              int32_t comp, double *work, as_point_sample *out) {
+/*
+ * Witnesses: points inside parts thinner or smaller than a cell.
+ *  1. descents from the near cells of one sign: from the cell's center (its lowest corner
+ *     in the ball when the center is beyond the sphere), within the cell grown by h/2; the
+ *     point reached is centered in its part (sm_center along grad f);
+ *  2. continuation along thin parts (sm_expand), from the thin witnesses (those of step 1,
+ *     and those it adds) and from the grid vertices inside thin parts (the corners of
+ *     unresolved mixed cells of the minority sign there, centered along grad f): it
+ *     follows a part through the cells where f does not show it at the corners (a thin
+ *     cavity cut by max(), say) once any of its cells shows it.
+ * At most SM_MAX_DESCENTS descents and SM_MAX_WITNESSES witnesses.
+ */
+static anistar_status sm_witnesses(sm_state *st) {
+    sm_grid *g = &st->g;
+    double h = g->h;
+    size_t descents = 0, off[8];
+    sm_corner_offsets(g, off);
+    anistar_status rs;
+    for (size_t cell = 0; cell < g->ncells && descents < SM_MAX_DESCENTS; cell++) {
+        if ((g->cell[cell] & (SM_NEAR | SM_MIXED)) != SM_NEAR) continue;
+        descents++;
+        int sg = 0, found, thin;
+        for (int c = 0; c < 8 && !sg; c++) {
+            size_t v = sm_corner(g, cell, c);
+            if (g->ball[v]) sg = g->sg[v];
+        }
+        double x0[3], y[3], lo[3], hi[3], gr[3] = {0, 0, 0}, n[3] = {0, 0, 0};
+        sm_vertex(g, sm_cell_base(g, cell), lo);
+        for (int i = 0; i < 3; i++) {
+            x0[i] = lo[i] + 0.5 * h;
+            hi[i] = lo[i] + 1.5 * h;
+            lo[i] -= 0.5 * h;
+        }
+        if (!fs_in_ball(st->s, x0))
+            for (int c = 0; c < 8; c++) {
+                size_t v = sm_corner(g, cell, c);
+                if (g->ball[v]) {
+                    sm_vertex(g, v, x0);
+                    break;
+                }
+            }
+        if ((rs = sm_descend(st, x0, sg, lo, hi, &found, y))) return rs;
+        if (!found) continue;
+        double fy = st->s->ops->eval(st->s, y, 1, gr, NULL);
+        if (!isfinite(fy)) return fail_nonfinite(st->ctx, "f", y);
+        if ((rs = sm_center(st, y, -sg, gr, &thin, n))) return rs;
+        if (sm_witness_near(st, y, -sg, 0.25 * h)) continue;
+        if (st->nwit >= SM_MAX_WITNESSES) break;
+        if ((rs = sm_add_witness(st, y, -sg, thin, n))) return rs;
+    }
+    /* continuation from the grid vertices inside thin parts */
+    uint8_t *seen = as_alloc(st->ctx, g->count);
+    if (!seen) return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    memset(seen, 0, g->count);
+    rs = ANISTAR_OK;
+    for (size_t cell = 0; cell < g->ncells && !rs && st->nwit < SM_MAX_WITNESSES; cell++) {
+        if ((g->cell[cell] & (SM_UNRES | SM_MIXED)) != (SM_UNRES | SM_MIXED)) continue;
+        size_t base = sm_cell_base(g, cell);
+        int neg = 0;
+        for (int c = 0; c < 8; c++) neg += g->sg[base + off[c]] < 0;
+        int minority = neg <= 4 ? -1 : 1;
+        for (int c = 0; c < 8 && !rs; c++) {
+            size_t v = base + off[c];
+            if (!g->ball[v] || g->sg[v] != minority || seen[v]) continue;
+            seen[v] = 1;
+            const double *gr = NULL;
+            if ((rs = sm_grad(st, v, &gr))) break;
+            double p[3], n[3] = {0, 0, 0};
+            int thin;
+            sm_vertex(g, v, p);
+            if ((rs = sm_center(st, p, minority, gr, &thin, n))) break;
+            /* steps of 2h: out of the 8 cells around the vertex */
+            if (thin) rs = sm_expand(st, p, n, minority, 2 * h);
+        }
+    }
+    as_free(st->ctx, seen, g->count);
+    if (rs) return rs;
+    /* continuation from the thin witnesses, the new ones included */
+    for (size_t wi = 0; wi < st->nwit && st->nwit < SM_MAX_WITNESSES; wi++) {
+        if (!st->wit[wi].thin) continue;
+        double p[3], n[3];
+        memcpy(p, st->wit[wi].p, sizeof p);
+        memcpy(n, st->wit[wi].n, sizeof n);
+        if ((rs = sm_expand(st, p, n, st->wit[wi].sg, h))) return rs;
+    }
+    return ANISTAR_OK;
+}
+
+/* ek: the unresolved cells around each edge (3 per vertex: its edges along +x, +y, +z). */
+static void sm_edge_counts(sm_state *st) {
+    sm_grid *g = &st->g;
+    size_t off[8];
+    sm_corner_offsets(g, off);
+    memset(g->ek, 0, 3 * g->count);
+    for (size_t cell = 0; cell < g->ncells; cell++) {
+        if (!(g->cell[cell] & SM_UNRES)) continue;
+        size_t base = sm_cell_base(g, cell);
+        for (int c = 0; c < 8; c++)
+            for (int ax = 0; ax < 3; ax++)
+                if (!((c >> ax) & 1)) g->ek[3 * (base + off[c]) + (size_t)ax]++;
+    }
+}
+
+/* ---- 6. links off the grid edges ---- */
+
+typedef struct sm_cand {
+    uint32_t node;
+    double d2;
+} sm_cand;
+
+/* Nodes of sign sg other than self around p (the corners and witnesses of the 125 cells
+ * within two of p's cell), in no particular order; at most cap. */
+static size_t sm_gather(const sm_state *st, const double p0[3], uint32_t self, int sg,
+                        sm_cand *cand, size_t cap) {
     const sm_grid *g = &st->g;
+    size_t cc[3], n = g->n, nv = g->nv, m = 0;
+    sm_cell_of(g, p0, cc);
+    size_t lo[3], hi[3];
+    for (int i = 0; i < 3; i++) {
+        lo[i] = cc[i] > 1 ? cc[i] - 2 : 0;
+        hi[i] = cc[i] + 2 < n ? cc[i] + 2 : n - 1;
+    }
+    for (size_t k = lo[2]; k <= hi[2] + 1; k++)
+        for (size_t j = lo[1]; j <= hi[1] + 1; j++)
+            for (size_t i = lo[0]; i <= hi[0] + 1 && m < cap; i++) {
+                size_t v = i + nv * (j + nv * k);
+                if (!g->ball[v] || g->sg[v] != sg || v == self) continue;
+                double p[3];
+                sm_vertex(g, v, p);
+                cand[m].node = (uint32_t)v;
+                cand[m++].d2 = v3_dist2(p, p0);
+            }
+    for (size_t k = lo[2]; k <= hi[2]; k++)
+        for (size_t j = lo[1]; j <= hi[1]; j++)
+            for (size_t i = lo[0]; i <= hi[0]; i++)
+                for (int32_t x = g->whead[i + n * (j + n * k)]; x >= 0 && m < cap;
+                     x = st->wit[x].next) {
+                    const sm_wit *o = &st->wit[x];
+                    if (o->sg != sg || g->count + (size_t)x == self) continue;
+                    cand[m].node = (uint32_t)(g->count + (size_t)x);
+                    cand[m++].d2 = v3_dist2(o->p, p0);
+                }
+    return m;
+}
+
+static inline int sm_cand_less(const sm_cand *a, const sm_cand *b) {
+    return a->d2 < b->d2 || (a->d2 == b->d2 && a->node < b->node);
+}
+
+/* The nearest candidates of each region (root) other than w's: up to 2 per region, for at
+ * most SM_GROUPS regions, nearest regions first. */
+#define SM_GROUPS 16
+typedef struct sm_group {
+    int32_t root;
+    int nc;
+    sm_cand c[2];
+} sm_group;
+
+static int sm_groups(sm_state *st, int32_t wroot, const sm_cand *cand, size_t m, sm_group *gr) {
+    int ng = 0;
+    for (size_t i = 0; i < m; i++) {
+        int32_t r = uf_find(st->uf, (int32_t)cand[i].node);
+        if (r == wroot) continue;
+        int k = 0;
+        while (k < ng && gr[k].root != r) k++;
+        if (k == ng) {
+            if (ng < SM_GROUPS) {
+                ng++;
+            } else { /* replace the farthest region when nearer */
+                int far = 0;
+                for (int j = 1; j < ng; j++)
+                    if (sm_cand_less(&gr[far].c[0], &gr[j].c[0])) far = j;
+                if (!sm_cand_less(&cand[i], &gr[far].c[0])) continue;
+                k = far;
+            }
+            gr[k].root = r;
+            gr[k].nc = 0;
+        }
+        sm_group *G = &gr[k];
+        if (G->nc < 2) {
+            G->c[G->nc++] = cand[i];
+        } else if (sm_cand_less(&cand[i], &G->c[1])) {
+            G->c[1] = cand[i];
+        } else {
+            continue;
+        }
+        if (G->nc == 2 && sm_cand_less(&G->c[1], &G->c[0])) {
+            sm_cand t = G->c[0];
+            G->c[0] = G->c[1];
+            G->c[1] = t;
+        }
+    }
+    for (int a = 1; a < ng; a++) { /* nearest regions first */
+        sm_group k = gr[a];
+        int b = a;
+        while (b > 0 && sm_cand_less(&k.c[0], &gr[b - 1].c[0])) {
+            gr[b] = gr[b - 1];
+            b--;
+        }
+        gr[b] = k;
+    }
+    return ng;
+}
+
+/* Node `node` (at p, of sign sg) joins the regions of its sign around it that it sees
+ * without crossing S: the chords to their nearest nodes (two per region, nearest regions
+ * first, at most SM_LINK_TRIES chords). */
+#define SM_AROUND_CAP 512
+static anistar_status sm_link_node(sm_state *st, uint32_t node, const double p[3], int sg,
+                                   sm_cand *cand, sm_group *gr) {
+    int tries = 0;
+    size_t m = sm_gather(st, p, node, sg, cand, SM_AROUND_CAP);
+    int ng = sm_groups(st, uf_find(st->uf, (int32_t)node), cand, m, gr);
+    for (int k = 0; k < ng && tries < SM_LINK_TRIES; k++) {
+        for (int c = 0; c < gr[k].nc && tries < SM_LINK_TRIES; c++) {
+            if (uf_find(st->uf, (int32_t)node) == uf_find(st->uf, (int32_t)gr[k].c[c].node))
+                break;
+            double q[3];
+            int sq;
+            sm_node(st, gr[k].c[c].node, q, &sq);
+            sm_scan sc;
+            anistar_status rs = sm_scan_segment(st, p, q, &sc);
+            if (rs) return rs;
+            tries++;
+            if (sc.n == 0) {
+                uf_union(st->uf, (int32_t)node, (int32_t)gr[k].c[c].node);
+                break;
+            }
+        }
+    }
+    return ANISTAR_OK;
+}
+
+/*
+ * Joins across the cells that do not resolve S. Linked nodes: every witness, and the
+ * corners of unresolved mixed cells whose sign is the minority there (at most 4 of the 8:
+ * the vertices inside a part thinner than the cells, which the grid edges leave in
+ * pieces). Each witness also gets a crossing record with one of the nearest nodes of the
+ * other sign (a chord crossing S once; at most SM_PAIR_TRIES tried).
+ */
+static anistar_status sm_link(sm_state *st) {
+    sm_grid *g = &st->g;
+    sm_cand cand[SM_AROUND_CAP];
+    sm_group gr[SM_GROUPS];
+    size_t off[8];
+    sm_corner_offsets(g, off);
+    /* each minority corner once */
+    uint8_t *mark = as_alloc(st->ctx, g->count);
+    if (!mark) return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    memset(mark, 0, g->count);
+    anistar_status rs = ANISTAR_OK;
+    for (size_t cell = 0; cell < g->ncells && !rs; cell++) {
+        if ((g->cell[cell] & (SM_UNRES | SM_MIXED)) != (SM_UNRES | SM_MIXED)) continue;
+        size_t base = sm_cell_base(g, cell);
+        int neg = 0;
+        for (int c = 0; c < 8; c++) neg += g->sg[base + off[c]] < 0;
+        int minority = neg <= 4 ? -1 : 1;
+        for (int c = 0; c < 8 && !rs; c++) {
+            size_t v = base + off[c];
+            if (!g->ball[v] || g->sg[v] != minority || mark[v]) continue;
+            mark[v] = 1;
+            double p[3];
+            sm_vertex(g, v, p);
+            rs = sm_link_node(st, (uint32_t)v, p, minority, cand, gr);
+        }
+    }
+    as_free(st->ctx, mark, g->count);
+    for (size_t wi = 0; wi < st->nwit && !rs; wi++) {
+        uint32_t node = (uint32_t)(g->count + wi);
+        double p[3];
+        memcpy(p, st->wit[wi].p, sizeof p);
+        int sg = st->wit[wi].sg;
+        if ((rs = sm_link_node(st, node, p, sg, cand, gr))) break;
+        /* the crossing: the nearest nodes of the other sign */
+        size_t m = sm_gather(st, p, node, -sg, cand, SM_AROUND_CAP);
+        for (int t = 0; t < SM_PAIR_TRIES && m > 0; t++) {
+            size_t best = 0;
+            for (size_t i = 1; i < m; i++)
+                if (sm_cand_less(&cand[i], &cand[best])) best = i;
+            sm_cand c = cand[best];
+            cand[best] = cand[--m];
+            double q[3];
+            int sq;
+            sm_node(st, c.node, q, &sq);
+            sm_scan sc;
+            if ((rs = sm_scan_segment(st, p, q, &sc))) break;
+            if (sc.n != 1) continue;
+            rs = sm_add_bracket(st, &sc, 0, p, q, node, sg, c.node, NULL);
+            break;
+        }
+    }
+    return rs;
+}
+
+/* ---- 7. components ---- */
+
+static int sm_pair_cmp(const void *pa, const void *pb) {
+    const sm_pair *a = pa, *b = pb;
+    if (a->rin != b->rin) return a->rin < b->rin ? -1 : 1;
+    if (a->rout != b->rout) return a->rout < b->rout ? -1 : 1;
+    return (a->rec > b->rec) - (a->rec < b->rec);
+}
+
+static int sm_rec_cmp(const void *pa, const void *pb) {
+    const sm_rec *a = pa, *b = pb;
+    if (a->comp != b->comp) return a->comp < b->comp ? -1 : 1;
+    return (a->ord > b->ord) - (a->ord < b->ord);
+}
+
+/* The component of the pair of roots (rin, rout), -1 if there is none. */
+static int32_t sm_pair_comp(const sm_state *st, uint32_t rin, uint32_t rout) {
+    size_t lo = 0, hi = st->ncomp;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        const sm_pair *p = &st->pairs[mid];
+        if (p->rin < rin || (p->rin == rin && p->rout < rout)) lo = mid + 1;
+        else hi = mid;
+    }
+    if (lo < st->ncomp && st->pairs[lo].rin == rin && st->pairs[lo].rout == rout)
+        return (int32_t)lo;
+    return -1;
+}
+
+/* Distinct root pairs -> components (in the order of the pairs); records sorted by
+ * component; the record buckets; the components of the Crofton crossings. */
+static anistar_status sm_components(sm_state *st) {
+    sm_grid *g = &st->g;
+    if (st->nrec == 0) return ANISTAR_OK;
+    st->pairs = as_alloc_array(st->ctx, st->nrec, sizeof(sm_pair));
+    if (!st->pairs) return as_fail(st->ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    for (size_t i = 0; i < st->nrec; i++) {
+        st->pairs[i].rin = (uint32_t)uf_find(st->uf, (int32_t)st->rec[i].nin);
+        st->pairs[i].rout = (uint32_t)uf_find(st->uf, (int32_t)st->rec[i].nout);
+        st->pairs[i].rec = (uint32_t)i;
+    }
+    qsort(st->pairs, st->nrec, sizeof(sm_pair), sm_pair_cmp);
+    size_t m = 0;
+    for (size_t i = 0; i < st->nrec; i++) {
+        if (i > 0 && st->pairs[i].rin == st->pairs[i - 1].rin &&
+            st->pairs[i].rout == st->pairs[i - 1].rout) {
+            st->rec[st->pairs[i].rec].comp = (int32_t)(m - 1);
+            continue;
+        }
+        st->rec[st->pairs[i].rec].comp = (int32_t)m;
+        st->pairs[m++] = st->pairs[i];
+    }
+    st->ncomp = m;
+    for (size_t i = 0; i < st->ncrof; i++)
+        if (st->crof[i].rec >= 0) st->crof[i].comp = st->rec[st->crof[i].rec].comp;
+    if (st->nrec) qsort(st->rec, st->nrec, sizeof(sm_rec), sm_rec_cmp);
+    for (size_t i = st->nrec; i-- > 0;) {
+        double mid[3];
+        size_t cc[3];
+        for (int k = 0; k < 3; k++) mid[k] = 0.5 * (st->rec[i].a[k] + st->rec[i].b[k]);
+        size_t cell = sm_cell_of(g, mid, cc);
+        st->rec[i].next = g->xhead[cell];
+        g->xhead[cell] = (int32_t)i;
+    }
+    return ANISTAR_OK;
+}
+
+/* The component of the record nearest x among those of the cells within r cells of x's
+ * cell, -1 if none. */
+static int32_t sm_nearest_comp(const sm_state *st, const double x[3], size_t r) {
+    const sm_grid *g = &st->g;
+    size_t cc[3], n = g->n;
+    sm_cell_of(g, x, cc);
+    double best = INFINITY;
+    int32_t comp = -1;
+    for (size_t k = cc[2] > r ? cc[2] - r : 0; k <= cc[2] + r && k < n; k++)
+        for (size_t j = cc[1] > r ? cc[1] - r : 0; j <= cc[1] + r && j < n; j++)
+            for (size_t i = cc[0] > r ? cc[0] - r : 0; i <= cc[0] + r && i < n; i++)
+                for (int32_t e = g->xhead[i + n * (j + n * k)]; e >= 0; e = st->rec[e].next) {
+                    const sm_rec *rc = &st->rec[e];
+                    double mid[3] = {0.5 * (rc->a[0] + rc->b[0]), 0.5 * (rc->a[1] + rc->b[1]),
+                                     0.5 * (rc->a[2] + rc->b[2])};
+                    double d2 = v3_dist2(mid, x);
+                    if (d2 < best) {
+                        best = d2;
+                        comp = rc->comp;
+                    }
+                }
+    return comp;
+}
+
+/* ---- 8. areas ---- */
+
+static double sm_tri_area(const double a[3], const double b[3], const double c[3]) {
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+           v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]}, w[3];
+    v3_cross(u, v, w);
+    return 0.5 * v3_norm(w);
+}
+
+/* The root in [0, 1] of the cubic through (-1, fm), (0, fa), (1, fb), (2, fp) (fa, fb of
+ * opposite signs), by Newton from the linear root t0; t0 when it leaves [0, 1]. */
+static double sm_cubic_root(double fm, double fa, double fb, double fp, double t0) {
+    double c1 = -fm / 3 - fa / 2 + fb - fp / 6, c2 = fm / 2 - fa + fb / 2,
+           c3 = -fm / 6 + fa / 2 - fb / 2 + fp / 6, t = t0;
+    for (int it = 0; it < 6; it++) {
+        double v = fa + t * (c1 + t * (c2 + t * c3)), d = c1 + t * (2 * c2 + 3 * t * c3);
+        if (!(d != 0)) return t0;
+        double tn = t - v / d;
+        if (!(tn >= 0 && tn <= 1)) return t0;
+        if (fabs(tn - t) < 1e-7) return tn; /* 1e-7 of the edge: far below the area error */
+        t = tn;
+    }
+    return t;
+}
+
+/* A grid of values for marching tetrahedra: nv^3 vertices o + h (i, j, k), values f,
+ * ball flags (NULL: all in). */
+typedef struct sm_mtgrid {
+    size_t nv;
+    double h, o[3];
+    const double *f;
+    const int8_t *ball;
+} sm_mtgrid;
+
+/* The point where S crosses the segment between vertices ia and ib (indices (i, j, k)),
+ * by cubic interpolation along their line through the next vertices on both sides
+ * (linear where they are missing). */
+static void sm_mt_point(const sm_mtgrid *m, const size_t ia[3], const size_t ib[3], double x[3]) {
+    size_t nv = m->nv;
+    size_t a = ia[0] + nv * (ia[1] + nv * ia[2]), b = ib[0] + nv * (ib[1] + nv * ib[2]);
+    double fa = m->f[a], fb = m->f[b], t = fa / (fa - fb);
+    long im[3], ip[3];
+    int ok = 1;
+    for (int k = 0; k < 3; k++) {
+        im[k] = 2 * (long)ia[k] - (long)ib[k];
+        ip[k] = 2 * (long)ib[k] - (long)ia[k];
+        if (im[k] < 0 || ip[k] < 0 || im[k] >= (long)nv || ip[k] >= (long)nv) ok = 0;
+    }
+    if (ok) {
+        size_t vm = (size_t)im[0] + nv * ((size_t)im[1] + nv * (size_t)im[2]),
+               vp = (size_t)ip[0] + nv * ((size_t)ip[1] + nv * (size_t)ip[2]);
+        if (!m->ball || (m->ball[vm] && m->ball[vp]))
+            t = sm_cubic_root(m->f[vm], fa, fb, m->f[vp], t);
+    }
+    for (int k = 0; k < 3; k++)
+        x[k] = m->o[k] + m->h * ((double)ia[k] + t * ((double)ib[k] - (double)ia[k]));
+}
+
+/* The area of S inside cell (i, j, k) of m by marching tetrahedra: the 6 tetrahedra of
+ * the cell around its diagonal from corner 0 to corner 7 (corner bits: +x, +y, +z), one
+ * or two triangles in each with a sign change; each crossing point once per cell. */
+static double sm_mt_cell(const sm_mtgrid *m, size_t i, size_t j, size_t k) {
+    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
+                                   {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    size_t nv = m->nv, idx[8][3];
+    double f[8], x[8][8][3];
+    unsigned char done[8][8];
+    memset(done, 0, sizeof done);
+    for (int c = 0; c < 8; c++) {
+        idx[c][0] = i + (size_t)(c & 1);
+        idx[c][1] = j + (size_t)((c >> 1) & 1);
+        idx[c][2] = k + (size_t)((c >> 2) & 1);
+        f[c] = m->f[idx[c][0] + nv * (idx[c][1] + nv * idx[c][2])];
+    }
+    double area = 0;
+    for (int t = 0; t < 6; t++) {
+        int corner[4] = {0, 1 << perm[t][0], (1 << perm[t][0]) | (1 << perm[t][1]), 7};
+        int in[4], nin = 0, out[4], nout = 0;
+        for (int q = 0; q < 4; q++) {
+            if (f[corner[q]] < 0) in[nin++] = corner[q];
+            else out[nout++] = corner[q];
+        }
+        if (!nin || !nout) continue;
+        int pa[4], pb[4], np;
+        if (nin == 1 || nout == 1) {
+            int lone = nin == 1 ? in[0] : out[0];
+            const int *oth = nin == 1 ? out : in;
+            for (int q = 0; q < 3; q++) {
+                pa[q] = lone;
+                pb[q] = oth[q];
+            }
+            np = 3;
+        } else {
+            int qa[4] = {in[0], in[0], in[1], in[1]}, qb[4] = {out[0], out[1], out[1], out[0]};
+            memcpy(pa, qa, sizeof pa);
+            memcpy(pb, qb, sizeof pb);
+            np = 4;
+        }
+        const double *v[4];
+        for (int q = 0; q < np; q++) {
+            int a = pa[q] < pb[q] ? pa[q] : pb[q], b = pa[q] < pb[q] ? pb[q] : pa[q];
+            if (!done[a][b]) {
+                sm_mt_point(m, idx[a], idx[b], x[a][b]);
+                done[a][b] = 1;
+            }
+            v[q] = x[a][b];
+        }
+        area += sm_tri_area(v[0], v[1], v[2]);
+        if (np == 4) area += sm_tri_area(v[0], v[2], v[3]);
+    }
+    return area;
+}
+
+/* The component of a mixed cell: that of one of its sign-change edges. */
+static int32_t sm_cell_comp(sm_state *st, size_t cell) {
+    const sm_grid *g = &st->g;
+    for (int c = 0; c < 8; c++)
+        for (int ax = 0; ax < 3; ax++) {
+            if ((c >> ax) & 1) continue;
+            size_t u = sm_corner(g, cell, c), v = sm_corner(g, cell, c | 1 << ax);
+            if (g->sg[u] == g->sg[v]) continue;
+            size_t in = g->sg[u] < 0 ? u : v, out = g->sg[u] < 0 ? v : u;
+            return sm_pair_comp(st, (uint32_t)uf_find(st->uf, (int32_t)in),
+                                (uint32_t)uf_find(st->uf, (int32_t)out));
+        }
+    return -1;
+}
+
+/* The area of a small component around p0, a point of its thin side (a witness): its
+ * extent along the axes from the crossings of the six half-axes from p0 within 2h, then
+ * marching tetrahedra on a grid of SM_SMALL_N^3 cells over that box. *area = 0 when a
+ * half-axis has no crossing (the component is not small). */
+static anistar_status sm_small_area(sm_state *st, const double p0[3], double *area) {
+    const as_surface *s = st->s;
+    anistar_context *ctx = st->ctx;
+    double h = st->g.h, lo[3], hi[3];
+    *area = 0;
+    for (int ax = 0; ax < 3; ax++)
+        for (int dir = -1; dir <= 1; dir += 2) {
+            double b[3] = {p0[0], p0[1], p0[2]}, x[3];
+            b[ax] += dir * 2 * h;
+            int found;
+            anistar_status rs = as_fsurface_crossing(ctx, s, p0, b, p0, &found, x);
+            if (rs) return rs;
+            if (!found) return ANISTAR_OK;
+            if (dir < 0) lo[ax] = x[ax];
+            else hi[ax] = x[ax];
+        }
+    double side = 0, c[3];
+    for (int i = 0; i < 3; i++) {
+        side = fmax(side, hi[i] - lo[i]);
+        c[i] = 0.5 * (lo[i] + hi[i]);
+    }
+    side *= 1.3;
+    if (!(side > 0)) return ANISTAR_OK;
+    size_t nv = SM_SMALL_N + 1, count = nv * nv * nv;
+    double *f = as_alloc_array(ctx, count, sizeof(double));
+    if (!f) return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    sm_mtgrid m = {nv, side / SM_SMALL_N, {c[0] - side / 2, c[1] - side / 2, c[2] - side / 2}, f,
+                   NULL};
+    anistar_status rs = ANISTAR_OK;
+    for (size_t idx = 0; idx < count && !rs; idx++) {
+        double p[3] = {m.o[0] + m.h * (double)(idx % nv), m.o[1] + m.h * (double)((idx / nv) % nv),
+                       m.o[2] + m.h * (double)(idx / (nv * nv))};
+        f[idx] = fs_in_ball(s, p) ? fs_value(s, p) : 1;
+        if (!isfinite(f[idx])) rs = fail_nonfinite(ctx, "f", p);
+    }
+    for (size_t k = 0; k < SM_SMALL_N && !rs; k++)
+        for (size_t j = 0; j < SM_SMALL_N; j++)
+            for (size_t i = 0; i < SM_SMALL_N; i++) *area += sm_mt_cell(&m, i, j, k);
+    as_free(ctx, f, count * sizeof(double));
+    return rs;
+}
+
+/* The Crofton weight of a crossing at x of an edge with k unresolved cells around it (of
+ * its 4): k/4 h^2 / (|n_x| + |n_y| + |n_z|) (n the unit normal at x). 0 where the
+ * gradient vanishes. */
+static double sm_crofton(const sm_state *st, const double x[3], int k) {
+    double gr[3] = {0, 0, 0};
+    double fx = st->s->ops->eval(st->s, x, 1, gr, NULL);
+    double l1 = fabs(gr[0]) + fabs(gr[1]) + fabs(gr[2]);
+    if (!isfinite(fx) || !(l1 > 0) || !isfinite(l1)) return 0;
+    return 0.25 * k * st->g.h * st->g.h * v3_norm(gr) / l1;
+}
+
+/* The cells around an edge that use the Crofton estimate: all but the resolved mixed
+ * cells (marching tetrahedra). */
+static int sm_crofton_cells(const sm_grid *g, size_t edge) {
+    size_t cells[4];
+    int m = sm_edge_cells(g, edge / 3, (int)(edge % 3), cells), k = 0;
+    for (int i = 0; i < m; i++)
+        k += (g->cell[cells[i]] & (SM_MIXED | SM_UNRES | SM_FRAG)) != SM_MIXED;
+    return k;
+}
+
+/*
+ * area[ncomp]. Resolved mixed cells: marching tetrahedra (vertices by cubic interpolation
+ * along the grid lines). The other cells near S: Crofton's formula on the lattice, each
+ * crossing of an edge weighted as in sm_crofton. A resolved mixed cell is a fragment cell
+ * (Crofton too) when a corner bends (K > SM_RESOLVED L there) and its region was joined
+ * from several pieces of the grid (a part thinner than the cells, where marching
+ * tetrahedra see bubbles around the vertices inside it). Components with neither (smaller
+ * than a cell) get sm_small_area.
+ */
+static anistar_status sm_areas(sm_state *st, double *area) {
+    sm_grid *g = &st->g;
+    anistar_context *ctx = st->ctx;
+    size_t n = g->n, nodes = g->count + st->nwit;
+    memset(area, 0, st->ncomp * sizeof(double));
+    if (st->frag_candidates) {
+        /* regions joined from several grid regions (fragment cells need such a region) */
+        int32_t *first = as_alloc_array(ctx, nodes, sizeof(int32_t));
+        uint8_t *joined = as_alloc(ctx, nodes);
+        if (!first || !joined) {
+            as_free(ctx, first, nodes * sizeof(int32_t));
+            as_free(ctx, joined, nodes);
+            return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+        }
+        for (size_t i = 0; i < nodes; i++) {
+            first[i] = -1;
+            joined[i] = 0;
+        }
+        for (size_t v = 0; v < g->count; v++) {
+            if (!g->ball[v]) continue;
+            int32_t r = uf_find(st->uf, (int32_t)v);
+            if (first[r] < 0) first[r] = g->groot[v];
+            else if (first[r] != g->groot[v]) joined[r] = 1;
+        }
+        for (size_t cell = 0; cell < g->ncells; cell++) {
+            if ((g->cell[cell] & (SM_MIXED | SM_UNRES)) != SM_MIXED) continue;
+            for (int c = 0; c < 8; c++) {
+                size_t v = sm_corner(g, cell, c);
+                if (g->K[v] > SM_RESOLVED * g->L[v] && joined[uf_find(st->uf, (int32_t)v)]) {
+                    g->cell[cell] |= SM_FRAG;
+                    break;
+                }
+            }
+        }
+        as_free(ctx, first, nodes * sizeof(int32_t));
+        as_free(ctx, joined, nodes);
+    }
+    /* marching tetrahedra */
+    sm_mtgrid m = {g->nv, g->h, {g->o[0], g->o[1], g->o[2]}, g->f, g->ball};
+    for (size_t cell = 0; cell < g->ncells; cell++) {
+        if ((g->cell[cell] & (SM_MIXED | SM_UNRES | SM_FRAG)) != SM_MIXED) continue;
+        int32_t comp = sm_cell_comp(st, cell);
+        if (comp < 0) continue;
+        area[comp] += sm_mt_cell(&m, cell % n, (cell / n) % n, cell / (n * n));
+    }
+    /* the edges of fragment cells not scanned yet (no unresolved cell around them) */
+    for (size_t cell = 0; cell < g->ncells; cell++) {
+        if (!(g->cell[cell] & SM_FRAG)) continue;
+        for (int c = 0; c < 8; c++)
+            for (int ax = 0; ax < 3; ax++) {
+                if ((c >> ax) & 1) continue;
+                size_t u = sm_corner(g, cell, c), e = 3 * u + (size_t)ax;
+                if (g->ek[e] != 0) continue; /* scanned (or done: 255) */
+                g->ek[e] = 255;
+                double a[3], b[3];
+                sm_vertex(g, u, a);
+                memcpy(b, a, sizeof b);
+                b[ax] += g->h;
+                sm_scan sc;
+                anistar_status rs = sm_scan_segment(st, a, b, &sc);
+                if (rs) return rs;
+                for (int i = 0; i < sc.n; i++) {
+                    double x[3];
+                    if ((rs = sm_scan_point(st, &sc, i, a, b, x)) ||
+                        (rs = sm_add_crof(st, x, e, -1)))
+                        return rs;
+                    /* a single crossing of a sign change: the component of its ends */
+                    size_t v = u + (ax == 0 ? 1 : (ax == 1 ? g->nv : g->nv * g->nv));
+                    if (sc.n == 1 && g->sg[u] != g->sg[v]) {
+                        size_t in = g->sg[u] < 0 ? u : v, out = g->sg[u] < 0 ? v : u;
+                        st->crof[st->ncrof - 1].comp =
+                            sm_pair_comp(st, (uint32_t)uf_find(st->uf, (int32_t)in),
+                                         (uint32_t)uf_find(st->uf, (int32_t)out));
+                    }
+                }
+            }
+    }
+    for (size_t i = 0; i < st->ncrof; i++) {
+        sm_crof *c = &st->crof[i];
+        if (c->comp < 0) c->comp = sm_nearest_comp(st, c->x, 1);
+        if (c->comp < 0) c->comp = sm_nearest_comp(st, c->x, 3);
+        if (c->comp >= 0) area[c->comp] += sm_crofton(st, c->x, sm_crofton_cells(g, c->edge));
+    }
+    size_t small = 0;
+    for (size_t i = 0; i < st->nrec && small < SM_SMALL_MAX;) {
+        int32_t comp = st->rec[i].comp;
+        size_t j = i;
+        while (j < st->nrec && st->rec[j].comp == comp) j++;
+        if (area[comp] < SM_SMALL_AREA * g->h * g->h) {
+            /* from the node of its record on the side that is not a grid vertex (a witness
+             * inside the small part), else the inside one */
+            const sm_rec *r = &st->rec[i];
+            uint32_t node = r->nin >= g->count ? r->nin : (r->nout >= g->count ? r->nout : r->nin);
+            double p[3], a;
+            int sg;
+            sm_node(st, node, p, &sg);
+            anistar_status rs = sm_small_area(st, p, &a);
+            if (rs) return rs;
+            if (a > 0) area[comp] = a;
+            small++;
+        }
+        i = j;
+    }
+    return ANISTAR_OK;
+}
+
+/* ---- 9. points ---- */
+
+/* Pick up to q records of rec[0..m) by farthest-point sampling of their midpoints (among
+ * at most 8 q candidates, a regular stride through the list) and append their crossings
+ * to out. work holds 4 m doubles. */
+static anistar_status sm_pick(sm_state *st, const sm_rec *rec, size_t m, size_t q, int32_t comp,
+                              double *work, as_point_sample *out) {
     size_t stride = m > 8 * q ? m / (8 * q) : 1;
     size_t nc = (m + stride - 1) / stride;
     if (q > nc) q = nc;
     for (size_t i = 0; i < nc; i++) {
-        const sm_edge *e = &edges[i * stride];
+        const sm_rec *r = &rec[i * stride];
         double *w = work + 4 * i;
-        sm_vertex(g, e->v, w);
-        w[e->axis] += 0.5 * g->h;
+        for (int k = 0; k < 3; k++) w[k] = 0.5 * (r->a[k] + r->b[k]);
         w[3] = INFINITY;
     }
     size_t cur = 0;
     for (size_t pick = 0; pick < q; pick++) {
-        const sm_edge *e = &edges[cur * stride];
-        double a[3], b[3], mid[3] = {work[4 * cur], work[4 * cur + 1], work[4 * cur + 2]}, x[3];
-        sm_vertex(g, e->v, a);
-        memcpy(b, a, sizeof a);
-        b[e->axis] += g->h;
+        const sm_rec *r = &rec[cur * stride];
+        double mid[3] = {work[4 * cur], work[4 * cur + 1], work[4 * cur + 2]}, x[3];
         int hit;
-        anistar_status rs = as_fsurface_crossing(st->ctx, st->s, a, b, mid, &hit, x);
+        anistar_status rs = as_fsurface_crossing(st->ctx, st->s, r->a, r->b, mid, &hit, x);
         if (rs) return rs;
         if (hit) {
             memcpy(out->points + 3 * out->n, x, sizeof x);
@@ -1132,7 +2403,6 @@ static anistar_status sm_pick(sm_state *st, const sm_edge *edges, size_t m, size
             out->n++;
         }
         work[4 * cur + 3] = -1;
-        /* update distances, choose the farthest */
         size_t next = 0;
         double far = -1;
         for (size_t i = 0; i < nc; i++) {
@@ -1160,73 +2430,102 @@ anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, siz
     memset(&st, 0, sizeof st);
     st.ctx = ctx;
     st.s = s;
-    const size_t levels[3] = {32, 64, 128};
-    size_t prev = (size_t)-1, ncomp = 0;
-    anistar_status rs = ANISTAR_OK;
-    for (int l = 0; l < 3; l++) {
-        rs = sm_level(&st, levels[l]);
-        if (rs) goto done;
-        ncomp = st.npairs + st.nextra;
-        if (ncomp > 0 && ncomp == prev) break;
-        prev = ncomp;
+    as_point_sample tmp;
+    memset(&tmp, 0, sizeof tmp);
+    double *work = NULL, *area = NULL;
+    size_t total = 0, nwork = 0;
+    anistar_status rs = sm_values(&st);
+    if (!rs) {
+        sm_differences(&st);
+        rs = sm_classify(&st);
     }
-    if (ncomp == 0) {
+    if (!rs) rs = sm_witnesses(&st);
+    if (!rs) {
+        sm_edge_counts(&st);
+        rs = sm_edges(&st);
+    }
+    if (!rs) rs = sm_link(&st);
+    if (!rs) rs = sm_components(&st);
+    if (rs) goto done;
+    if (st.ncomp == 0) {
         rs = as_fail(ctx, ANISTAR_ENOSURFACE,
                      "no surface found inside the bounding sphere (center %g %g %g, radius "
-                     "%g): f keeps one sign on a %zu^3 grid (spacing %g) and near its local "
-                     "extrema",
+                     "%g): f keeps one sign on a %zu^3 grid (spacing %g) and near its "
+                     "vertices where it bends",
                      s->center[0], s->center[1], s->center[2], s->radius, st.g.nv, st.g.h);
         goto done;
     }
-    /* Quotas: proportional to the edge count, at least one per component. The points go
-     * to temporaries of capacity `total`, then to arrays of exactly n. */
-    size_t total = max_points + ncomp;
-    as_point_sample tmp;
-    memset(&tmp, 0, sizeof tmp);
+    area = as_alloc_array(ctx, st.ncomp, sizeof(double));
+    if (!area) {
+        rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+        goto done;
+    }
+    if ((rs = sm_areas(&st, area))) goto done;
+    /* Quotas: proportional to the areas, at least one per component. The points go to
+     * temporaries of capacity `total`, then to arrays of exactly n. */
+    double atotal = 0;
+    for (size_t k = 0; k < st.ncomp; k++) atotal += area[k];
+    total = max_points + st.ncomp;
+    nwork = st.nrec;
     tmp.points = as_alloc_array(ctx, total, 3 * sizeof(double));
     tmp.component = as_alloc_array(ctx, total, sizeof(int32_t));
-    double *work = st.nedges ? as_alloc_array(ctx, st.nedges, 4 * sizeof(double)) : NULL;
-    if (tmp.points && tmp.component && (work || !st.nedges)) {
-        int32_t comp = 0;
-        for (size_t i = 0; i < st.nedges && !rs;) {
-            size_t j = i;
-            while (j < st.nedges && st.edges[j].rin == st.edges[i].rin &&
-                   st.edges[j].rout == st.edges[i].rout)
-                j++;
-            size_t m = j - i;
-            size_t q = (size_t)((double)max_points * (double)m / (double)st.nedges);
-            if (q < 1) q = 1;
-            rs = sm_pick(&st, st.edges + i, m, q, comp++, work, &tmp);
-            i = j;
-        }
-        for (size_t e = 0; e < st.nextra && !rs; e++) {
-            memcpy(tmp.points + 3 * tmp.n, st.extra[e].p, 3 * sizeof(double));
-            tmp.component[tmp.n++] = comp++;
-        }
-        if (!rs && tmp.n == 0)
-            rs = as_fail(ctx, ANISTAR_EINTERNAL, "sampling: no crossing could be refined");
-        if (!rs) {
-            out->points = as_alloc_array(ctx, tmp.n, 3 * sizeof(double));
-            out->component = as_alloc_array(ctx, tmp.n, sizeof(int32_t));
-            if (out->points && out->component) {
-                memcpy(out->points, tmp.points, tmp.n * 3 * sizeof(double));
-                memcpy(out->component, tmp.component, tmp.n * sizeof(int32_t));
-                out->n = tmp.n;
-                out->ncomponents = (size_t)comp;
-                out->spacing = st.g.h;
-            } else {
-                as_free(ctx, out->points, tmp.n * 3 * sizeof(double));
-                as_free(ctx, out->component, tmp.n * sizeof(int32_t));
-                rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
-            }
-        }
-    } else {
+    work = as_alloc_array(ctx, nwork, 4 * sizeof(double));
+    if (!tmp.points || !tmp.component || !work) {
         rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+        goto done;
     }
-    as_free(ctx, work, st.nedges * 4 * sizeof(double));
+    for (size_t i = 0; i < st.nrec && !rs;) {
+        int32_t comp = st.rec[i].comp;
+        size_t j = i;
+        while (j < st.nrec && st.rec[j].comp == comp) j++;
+        double share = atotal > 0 ? area[comp] / atotal : (double)(j - i) / (double)st.nrec;
+        size_t q = (size_t)((double)max_points * share);
+        if (q < 1) q = 1;
+        rs = sm_pick(&st, st.rec + i, j - i, q, comp, work, &tmp);
+        i = j;
+    }
+    if (rs) goto done;
+    /* A component whose crossings all failed to refine (none should: each record brackets
+     * one sign change) is dropped and the others renumbered. work (4 nrec >= ncomp
+     * doubles) holds the new numbers. */
+    size_t ncomp = 0;
+    {
+        int32_t *renum = (int32_t *)work;
+        for (size_t k = 0; k < st.ncomp; k++) renum[k] = -1;
+        for (size_t i = 0; i < tmp.n; i++) renum[tmp.component[i]] = 0;
+        for (size_t k = 0; k < st.ncomp; k++)
+            if (renum[k] == 0) {
+                area[ncomp] = area[k];
+                renum[k] = (int32_t)ncomp++;
+            }
+        for (size_t i = 0; i < tmp.n; i++) tmp.component[i] = renum[tmp.component[i]];
+    }
+    if (ncomp == 0) {
+        rs = as_fail(ctx, ANISTAR_EINTERNAL, "sampling: no crossing could be refined");
+        goto done;
+    }
+    out->points = as_alloc_array(ctx, tmp.n, 3 * sizeof(double));
+    out->component = as_alloc_array(ctx, tmp.n, sizeof(int32_t));
+    out->area = as_alloc_array(ctx, ncomp, sizeof(double));
+    if (!out->points || !out->component || !out->area) {
+        as_free(ctx, out->points, tmp.n * 3 * sizeof(double));
+        as_free(ctx, out->component, tmp.n * sizeof(int32_t));
+        as_free(ctx, out->area, ncomp * sizeof(double));
+        memset(out, 0, sizeof *out);
+        rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+        goto done;
+    }
+    memcpy(out->points, tmp.points, tmp.n * 3 * sizeof(double));
+    memcpy(out->component, tmp.component, tmp.n * sizeof(int32_t));
+    memcpy(out->area, area, ncomp * sizeof(double));
+    out->n = tmp.n;
+    out->ncomponents = ncomp;
+    out->spacing = st.g.h;
+done:
+    as_free(ctx, work, nwork * 4 * sizeof(double));
     as_free(ctx, tmp.points, total * 3 * sizeof(double));
     as_free(ctx, tmp.component, total * sizeof(int32_t));
-done:
+    as_free(ctx, area, st.ncomp * sizeof(double));
     sm_state_free(&st);
     if (rs) memset(out, 0, sizeof *out);
     return rs;

@@ -1,0 +1,185 @@
+/*
+ * feature.c — medial points and the local feature size (paper 2.3; DESIGN.md 4.5). See
+ * feature.h.
+ */
+#include "mesher/feature.h"
+
+#include <math.h>
+#include <string.h>
+
+void as_feature_free(anistar_context *ctx, as_feature *fe) {
+    if (fe->kd) as_kdtree_free(ctx, fe->kd);
+    as_free(ctx, fe->pts, (size_t)fe->cap * 3 * sizeof *fe->pts);
+    as_free(ctx, fe->rad, (size_t)fe->cap * sizeof *fe->rad);
+    memset(fe, 0, sizeof *fe);
+}
+
+static inline double dot3(const double a[3], const double b[3]) {
+    return (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2];
+}
+
+static anistar_status add_point(anistar_context *ctx, as_feature *fe, const double c[3],
+                                double rho) {
+    if (fe->n == fe->cap) {
+        size_t cap = fe->cap ? 2 * (size_t)fe->cap : 1024;
+        double *p = as_realloc(ctx, fe->pts, (size_t)fe->cap * 3 * sizeof *p, cap * 3 * sizeof *p);
+        if (!p) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (medial points)");
+        fe->pts = p;
+        double *r = as_realloc(ctx, fe->rad, (size_t)fe->cap * sizeof *r, cap * sizeof *r);
+        if (!r) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (medial points)");
+        fe->rad = r;
+        fe->cap = (int32_t)cap;
+    }
+    memcpy(fe->pts + 3 * (size_t)fe->n, c, 3 * sizeof *c);
+    fe->rad[fe->n++] = rho;
+    return ANISTAR_OK;
+}
+
+/*
+ * The medial ball of sample point i (q, unit direction d into the side): *rho and the
+ * cosine of the separation angle at its center; *rho = +inf when none was found below
+ * the bounding radius.
+ */
+static anistar_status medial_ball(anistar_context *ctx, const as_surface *surf,
+                                  const as_kdtree *kd, const double *pts, int32_t i,
+                                  const double d[3], double *rho_out, double *cos_out) {
+    const double *q = pts + 3 * (size_t)i;
+    const double R = surf->radius;
+    double rho = R, cosang = -1; /* the ray's crossing: opposite, 180 degrees */
+    int touched = 0;
+    {
+        double a[3], b[3], x[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = q[k] + 1e-9 * R * d[k];
+            b[k] = q[k] + 2.0 * R * d[k];
+        }
+        int hit = 0;
+        anistar_status s = as_surface_crossing(ctx, surf, a, b, a, &hit, x);
+        if (s != ANISTAR_OK) return s;
+        if (hit) {
+            double w[3] = {x[0] - q[0], x[1] - q[1], x[2] - q[2]};
+            double t = dot3(w, d);
+            if (t > 0 && 0.5 * t < rho) {
+                rho = 0.5 * t;
+                touched = 1;
+            }
+        }
+    }
+    /* design: shrinking ball against the sample: each step the ball tangent at q through
+     * the nearest sample point inside it; the radius falls strictly, so it ends */
+    for (int it = 0; it < 64; it++) {
+        double c[3];
+        for (int k = 0; k < 3; k++) c[k] = q[k] + rho * d[k];
+        int32_t ids[2];
+        double d2[2];
+        size_t m = as_kdtree_knn(kd, c, 2, ids, d2);
+        int32_t j = -1;
+        double dj = 0;
+        for (size_t k = 0; k < m && j < 0; k++)
+            if (ids[k] != i) {
+                j = ids[k];
+                dj = d2[k];
+            }
+        if (j < 0 || !(dj < rho * rho * (1 - 1e-12))) break;
+        const double *sp = pts + 3 * (size_t)j;
+        double w[3] = {sp[0] - q[0], sp[1] - q[1], sp[2] - q[2]};
+        double den = 2 * dot3(d, w);
+        if (!(den > 0)) break;
+        double r = dot3(w, w) / den;
+        if (!(r < rho)) break;
+        rho = r;
+        touched = 1;
+        /* the separation angle at the new center between q and s */
+        double u[3], v[3];
+        for (int k = 0; k < 3; k++) {
+            u[k] = q[k] - (q[k] + rho * d[k]);
+            v[k] = sp[k] - (q[k] + rho * d[k]);
+        }
+        double nu = sqrt(dot3(u, u)), nv = sqrt(dot3(v, v));
+        cosang = nu > 0 && nv > 0 ? dot3(u, v) / (nu * nv) : 1;
+    }
+    *rho_out = touched && rho < R ? rho : INFINITY;
+    *cos_out = cosang;
+    return ANISTAR_OK;
+}
+
+anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_feature *fe) {
+    memset(fe, 0, sizeof *fe);
+    as_point_sample smp;
+    anistar_status s = as_surface_sample(ctx, surf, AS_FEATURE_SAMPLE, &smp);
+    if (s != ANISTAR_OK) return s;
+    as_kdtree *kd = NULL;
+    if ((s = as_kdtree_build(ctx, smp.points, NULL, smp.n, &kd)) != ANISTAR_OK) goto done;
+    /* design: the floor is the surface's own resolution: a fraction of the mean edge of
+     * a triangle mesh, of a voxel of an image (about half the grid spacing); an implicit
+     * function is exact, its floor only numerical */
+    fe->floor_e = as_surface_is_mesh(surf)    ? smp.spacing / 8
+                  : as_surface_is_image(surf) ? smp.spacing / 2
+                                              : 1e-4 * surf->radius;
+    if (!(fe->floor_e > 0)) fe->floor_e = 1e-4 * surf->radius;
+    const double cos_max = cos(AS_FEATURE_ANGLE);
+    for (size_t i = 0; i < smp.n; i++) {
+        const double *q = smp.points + 3 * i;
+        double n[3];
+        int sing = 0;
+        if ((s = as_surface_normal_at(ctx, surf, q, n, &sing)) != ANISTAR_OK) goto done;
+        if (sing) continue;
+        for (int side = -1; side <= 1; side += 2) {
+            double d[3] = {side * n[0], side * n[1], side * n[2]}, rho, cosang;
+            if ((s = medial_ball(ctx, surf, kd, smp.points, (int32_t)i, d, &rho, &cosang)) !=
+                ANISTAR_OK)
+                goto done;
+            if (!isfinite(rho) || cosang > cos_max) continue;
+            double c[3] = {q[0] + rho * d[0], q[1] + rho * d[1], q[2] + rho * d[2]};
+            if ((s = add_point(ctx, fe, c, rho)) != ANISTAR_OK) goto done;
+        }
+    }
+    if (fe->n > 0) s = as_kdtree_build(ctx, fe->pts, NULL, (size_t)fe->n, &fe->kd);
+done:
+    if (kd) as_kdtree_free(ctx, kd);
+    as_surface_sample_free(ctx, &smp);
+    if (s != ANISTAR_OK) as_feature_free(ctx, fe);
+    return s;
+}
+
+anistar_status as_feature_lfs(anistar_context *ctx, const as_feature *fe,
+                              const as_metric_frame *mf, const double p[3], double need,
+                              as_idlist *scratch, double *lfs, int *exact) {
+    *exact = 1;
+    *lfs = INFINITY;
+    if (!fe->kd) return ANISTAR_OK;
+    const double floor_m = mf->e[2] * fe->floor_e;
+    enum { K = 8 };
+    int32_t ids[K];
+    double d2[K];
+    size_t m = as_kdtree_knn(fe->kd, p, K, ids, d2);
+    if (m == 0) return ANISTAR_OK;
+    double lb = mf->e[0] * sqrt(d2[0]);
+    if (need > 0 && lb > need) {
+        *exact = 0;
+        *lfs = lb > floor_m ? lb : floor_m;
+        return ANISTAR_OK;
+    }
+    /* design: an upper bound from the K Euclidean-nearest, then every medial point in
+     * the box of the M-ball of that radius: the exact minimum */
+    double ub = INFINITY;
+    for (size_t k = 0; k < m; k++) {
+        double d = as_metric_dist(mf, p, fe->pts + 3 * (size_t)ids[k]);
+        if (d < ub) ub = d;
+    }
+    double h[3], lo[3], hi[3];
+    as_metric_ellipsoid_box(mf, ub * (1 + 1e-9), h);
+    for (int k = 0; k < 3; k++) {
+        lo[k] = p[k] - h[k];
+        hi[k] = p[k] + h[k];
+    }
+    anistar_status s = as_kdtree_box_any(ctx, fe->kd, lo, hi, 0, scratch);
+    if (s != ANISTAR_OK) return s;
+    double best = ub;
+    for (size_t k = 0; k < scratch->n; k++) {
+        double d = as_metric_dist(mf, p, fe->pts + 3 * (size_t)scratch->ids[k]);
+        if (d < best) best = d;
+    }
+    *lfs = best > floor_m ? best : floor_m;
+    return ANISTAR_OK;
+}

@@ -1,0 +1,365 @@
+/*
+ * test_guards.c — the guards that make every run of the mesher end honestly (issue 12,
+ * DESIGN.md 4.5 "The run's contract"): the 1e-9 bug trap, the stall detector, the stop
+ * request, the progress state, the up-front estimate and its refusal, and the final
+ * checks (as_mesher_certify) with their adaptive feature size.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_check.h"
+#include "test_util.h"
+
+#include "io/meshio.h"
+#include "mesher/mesher.h"
+#include "mesher/refine.h"
+#include "surface/field.h"
+#include "surface/surface.h"
+
+typedef struct run {
+    anistar_context *ctx;
+    as_surface *s;
+    as_field *f;
+    anistar_mesh *mesh;
+    as_starset *ss;
+    anistar_status st;
+} run;
+
+/* Mesh a built-in surface (or a file when spec contains a '/') keeping the star set. */
+static void run_keep(run *r, const char *spec, const char *metric, const as_mesher_params *p) {
+    memset(r, 0, sizeof *r);
+    r->ctx = anistar_context_new(NULL);
+    assert_non_null(r->ctx);
+    anistar_status st = strchr(spec, '/') ? as_mesh_surface_read(r->ctx, spec, &r->s)
+                                          : as_implicit_builtin(r->ctx, spec, &r->s);
+    if (st) fail_msg("%s: %s", spec, anistar_last_error(r->ctx));
+    if (as_field_from_spec(r->ctx, r->s, metric, &r->f))
+        fail_msg("%s: %s", metric, anistar_last_error(r->ctx));
+    r->st = as_mesher_run_keep(r->ctx, r->s, r->f, p, NULL, &r->mesh, &r->ss);
+}
+
+static void run_free(run *r) {
+    if (r->ss) {
+        as_starset_destroy(r->ss);
+        as_free(r->ctx, r->ss, sizeof *r->ss);
+    }
+    as_mesh_free(r->mesh);
+    as_field_free(r->f);
+    as_surface_free(r->s);
+    anistar_context_free(r->ctx);
+}
+
+/* The bug trap: a refinement point within a relative 1e-9 (in the star's metric) of an
+ * existing site is EINTERNAL naming the facet, the star and the site; the facet's own
+ * surface center is not. */
+static void test_near_site_trap(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.3;
+    run r;
+    run_keep(&r, "sphere", "euclidean", &p);
+    assert_int_equal(r.st, ANISTAR_OK);
+    as_starset *ss = r.ss;
+    int32_t v = ss->first_site;
+    const as_star *st = ss->stars[v];
+    assert_true(st->nrf > 0);
+    const as_rfacet *f = &st->rf[0];
+    int32_t q = f->g[0] != v ? f->g[0] : f->g[1]; /* a neighbour of v */
+    double c[3];
+    memcpy(c, f->c, sizeof c);
+    assert_int_equal(as_refine_check_point(ss, c, v, f->g, f->r), ANISTAR_OK);
+    /* the site itself, and a point a relative 1e-11 away from it */
+    const double *x = ss->xyz + 3 * (size_t)q;
+    double y[3] = {x[0] + 1e-11 * f->r, x[1], x[2]};
+    for (int k = 0; k < 2; k++) {
+        const double *pt = k ? y : x;
+        assert_int_equal(as_refine_check_point(ss, pt, v, f->g, f->r), ANISTAR_EINTERNAL);
+        const char *msg = anistar_last_error(r.ctx);
+        char want[96];
+        snprintf(want, sizeof want, "facet (%d %d %d)", (int)f->g[0], (int)f->g[1], (int)f->g[2]);
+        assert_non_null(strstr(msg, want));
+        snprintf(want, sizeof want, "star of site %d", (int)v);
+        assert_non_null(strstr(msg, want));
+        snprintf(want, sizeof want, "from site %d", (int)q);
+        assert_non_null(strstr(msg, want));
+    }
+    /* 1e-7 relative is not a trap; the topology rule's variant names the star */
+    double z[3] = {x[0] + 1e-7 * f->r, x[1], x[2]};
+    assert_int_equal(as_refine_check_point(ss, z, v, f->g, f->r), ANISTAR_OK);
+    assert_int_equal(as_refine_check_point(ss, y, v, NULL, f->r), ANISTAR_EINTERNAL);
+    assert_non_null(strstr(anistar_last_error(r.ctx), "topology refinement point"));
+    run_free(&r);
+}
+
+/* A stall budget of a few insertions stops a run that needs rule 3 with INCOMPLETE and
+ * a mesh of its consistent facets; the default budget lets it finish, and the longest
+ * stall of that healthy run is far below the budget. */
+static void test_stall(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 2;
+    run r;
+    run_keep(&r, "torus,R=1,r=0.05", "euclidean", &p);
+    assert_int_equal(r.st, ANISTAR_OK);
+    const anistar_mesh_stats *S = &r.mesh->stats;
+    assert_true(S->insertions_rule[2] > 20); /* the case exercises rule 3 */
+    assert_true(S->stall_max < AS_STALL_MIN / 100);
+    assert_int_equal(S->stop_reason, ANISTAR_STOP_DONE);
+    run_free(&r);
+
+    p.max_stall = 2;
+    run_keep(&r, "torus,R=1,r=0.05", "euclidean", &p);
+    assert_int_equal(r.st, ANISTAR_INCOMPLETE);
+    assert_non_null(strstr(anistar_last_error(r.ctx), "stalled"));
+    S = &r.mesh->stats;
+    assert_int_equal(S->stop_reason, ANISTAR_STOP_STALL);
+    assert_false(S->complete);
+    assert_true(S->vertices > 0);
+    assert_true(S->stall_max >= 2);
+    /* every facet written is consistent */
+    assert_true(S->facets > 0);
+    run_free(&r);
+}
+
+typedef struct prog {
+    anistar_mesher *m;
+    int calls, stop_at;
+    size_t last_vertices;
+    int monotone;
+    double estimate;
+    uint64_t budget;
+} prog;
+
+static int on_progress(size_t vertices, size_t inconsistent, double seconds, void *user) {
+    (void)inconsistent;
+    (void)seconds;
+    prog *pg = user;
+    anistar_progress p;
+    assert_int_equal(anistar_mesher_get_progress(pg->m, &p), ANISTAR_OK);
+    assert_int_equal(p.vertices, vertices);
+    if (vertices < pg->last_vertices) pg->monotone = 0;
+    pg->last_vertices = vertices;
+    pg->estimate = p.estimate_vertices;
+    pg->budget = p.max_stall;
+    if (++pg->calls == pg->stop_at) anistar_mesher_stop(pg->m);
+    return 0;
+}
+
+/* anistar_mesher_stop from the progress callback ends the run with INCOMPLETE, stop
+ * reason "requested" and the mesh so far; before a run it stops the run at once; the
+ * flag is cleared when a run ends, so the next run completes. The progress state agrees
+ * with the callback's arguments. */
+static void test_stop_request(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    anistar_metric *m;
+    anistar_mesher *mr;
+    assert_int_equal(anistar_surface_builtin(ctx, "torus", &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "curvature", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &mr), ANISTAR_OK);
+    prog pg = {mr, 0, 3, 0, 1, 0, 0};
+    anistar_mesher_set_progress(mr, on_progress, &pg);
+    anistar_mesh *mesh = NULL;
+    assert_int_equal(anistar_mesher_run(mr, &mesh), ANISTAR_INCOMPLETE);
+    assert_non_null(mesh);
+    assert_non_null(strstr(anistar_last_error(ctx), "on request"));
+    anistar_mesh_stats S;
+    anistar_mesh_get_stats(mesh, &S);
+    assert_int_equal(S.stop_reason, ANISTAR_STOP_REQUESTED);
+    assert_string_equal(anistar_stop_reason_name(S.stop_reason), "requested");
+    assert_true(pg.calls >= 3);
+    assert_true(pg.monotone);
+    assert_true(pg.estimate > 0);
+    assert_true(pg.budget >= AS_STALL_MIN);
+    anistar_mesh_free(mesh);
+    /* a stop requested before the run */
+    anistar_mesher_set_progress(mr, NULL, NULL);
+    anistar_mesher_set(mr, ANISTAR_PARAM_R0, 1.0);
+    anistar_mesher_stop(mr);
+    assert_int_equal(anistar_mesher_run(mr, &mesh), ANISTAR_INCOMPLETE);
+    anistar_mesh_get_stats(mesh, &S);
+    assert_int_equal(S.stop_reason, ANISTAR_STOP_REQUESTED);
+    anistar_mesh_free(mesh);
+    /* cleared: the next run finishes */
+    assert_int_equal(anistar_mesher_run(mr, &mesh), ANISTAR_OK);
+    anistar_mesh_get_stats(mesh, &S);
+    assert_int_equal(S.stop_reason, ANISTAR_STOP_DONE);
+    assert_true(S.complete);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(mr);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* The final checks on certified runs, then on damage: sample labels that disagree with
+ * the mesh (exact components of a triangle-mesh input: "joined"; the sampler's grid of
+ * an implicit surface: accepted and counted), a sample component left without mesh, and
+ * an edge that leaves S (a vertex moved off it). */
+static void test_certify(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.3;
+    const char *inputs[2] = {"sphere", AS_TEST_DATA_DIR "/sphere_r0.5.off"};
+    for (int k = 0; k < 2; k++) {
+        run r;
+        run_keep(&r, inputs[k], "euclidean", &p);
+        assert_int_equal(r.st, ANISTAR_OK);
+        assert_int_equal(r.mesh->stats.components, 1);
+        int ok, refinable;
+        uint64_t sig;
+        assert_int_equal(as_mesher_certify(r.ss, r.mesh, &ok, &refinable, &sig), ANISTAR_OK);
+        assert_true(ok);
+        /* pretend the sampler saw two components: relabel half the initial sites */
+        as_starset *ss = r.ss;
+        ss->nscomp = 2;
+        int32_t n0 = 0;
+        for (int32_t v = ss->first_site; v < ss->n; v++)
+            if (ss->scomp[v] == 0 && (n0++ & 1)) ss->scomp[v] = 1;
+        assert_int_equal(as_mesher_certify(ss, r.mesh, &ok, &refinable, &sig), ANISTAR_OK);
+        if (k == 0) {
+            assert_true(ok); /* the mesh hugs S: its components are S's */
+            assert_true(r.mesh->stats.components_joined >= 1);
+        } else {
+            assert_false(ok);
+            assert_true(refinable);
+            assert_non_null(strstr(anistar_last_error(r.ctx), "joined"));
+        }
+        /* a sample component whose sites have no mesh: not curable by refinement */
+        for (int32_t v = ss->first_site; v < ss->n; v++) ss->scomp[v] = ss->scomp[v] >= 0 ? 0 : -1;
+        assert_int_equal(as_mesher_certify(ss, r.mesh, &ok, &refinable, &sig), ANISTAR_OK);
+        assert_false(ok);
+        assert_false(refinable);
+        assert_non_null(strstr(anistar_last_error(r.ctx), "no mesh"));
+        ss->nscomp = 1;
+        run_free(&r);
+    }
+    /* a bridge: two spheres 0.3 apart; the vertex of each nearest the other swapped, so
+     * that each one's edges cross the gap (outside S, between opposite normals) */
+    run r;
+    as_mesher_params_default(&p);
+    p.r0 = 0.5;
+    memset(&r, 0, sizeof r);
+    r.ctx = anistar_context_new(NULL);
+    double o[3] = {0, 0, 0};
+    assert_int_equal(as_implicit_from_expression(
+                         r.ctx, "min(x^2+y^2+z^2-1, (x-2.3)^2+y^2+z^2-1)", o, 3.6, &r.s),
+                     ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(r.ctx, r.s, "euclidean", &r.f), ANISTAR_OK);
+    r.st = as_mesher_run_keep(r.ctx, r.s, r.f, &p, NULL, &r.mesh, &r.ss);
+    assert_int_equal(r.st, ANISTAR_OK);
+    assert_int_equal(r.mesh->stats.components, 2);
+    double *x = r.mesh->tm.xyz;
+    size_t a = 0, b = 0;
+    for (size_t v = 0; v < r.mesh->tm.nv; v++) {
+        if (x[3 * v] < 1.15 && x[3 * v] > x[3 * a]) a = v;
+        if (x[3 * v] > 1.15 && (x[3 * b] < 1.15 || x[3 * v] < x[3 * b])) b = v;
+    }
+    for (int j = 0; j < 3; j++) {
+        double t = x[3 * a + j];
+        x[3 * a + j] = x[3 * b + j];
+        x[3 * b + j] = t;
+    }
+    int ok, refinable;
+    uint64_t sig;
+    assert_int_equal(as_mesher_certify(r.ss, r.mesh, &ok, &refinable, &sig), ANISTAR_OK);
+    assert_false(ok);
+    assert_true(refinable);
+    assert_non_null(strstr(anistar_last_error(r.ctx), "bridges a gap"));
+    assert_true(r.ss->nfix > 0); /* the points of S those edges miss, to insert */
+    run_free(&r);
+}
+
+/* The refusal: an estimate above max_vertices refuses the run at once, with the estimate
+ * in the message; r0 = 1e-6 on the paper's torus (about 10^13 vertices) too. */
+static void test_refusal(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.3;
+    p.max_vertices = 40; /* the sphere at r0 0.3 makes about 90 */
+    run r;
+    run_keep(&r, "sphere", "euclidean", &p);
+    assert_int_equal(r.st, ANISTAR_EINVAL);
+    assert_null(r.mesh);
+    assert_non_null(strstr(anistar_last_error(r.ctx), "refused"));
+    assert_non_null(strstr(anistar_last_error(r.ctx), "max_vertices 40"));
+    run_free(&r);
+    as_mesher_params_default(&p);
+    p.r0 = 1e-6;
+    run_keep(&r, "torus", "curvature", &p);
+    assert_int_equal(r.st, ANISTAR_EINVAL);
+    const char *msg = anistar_last_error(r.ctx);
+    const char *at = strstr(msg, "about ");
+    assert_non_null(at);
+    assert_true(strtod(at + 6, NULL) > 1e12);
+    run_free(&r);
+}
+
+/* The estimate against the final count, on runs sized by r0 (the implicit sphere, a
+ * torus, and a triangle mesh): within 15%. */
+static void test_estimate(void **state) {
+    (void)state;
+    static const struct {
+        const char *spec;
+        double r0;
+    } cases[] = {{"sphere", 0.05}, {"torus,R=3,r=1", 0.1}, {AS_TEST_DATA_DIR "/knot1.off", 0.03}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        as_mesher_params p;
+        as_mesher_params_default(&p);
+        p.r0 = cases[i].r0;
+        run r;
+        run_keep(&r, cases[i].spec, "euclidean", &p);
+        assert_int_equal(r.st, ANISTAR_OK);
+        const anistar_mesh_stats *S = &r.mesh->stats;
+        double rel = (S->estimate_vertices - (double)S->vertices) / (double)S->vertices;
+        print_message("estimate %-28s r0 %-5g: %6.0f for %6zu vertices (%+.1f%%); memory %.1f "
+                      "MB for %.1f MB\n",
+                      cases[i].spec, cases[i].r0, S->estimate_vertices, S->vertices, 100 * rel,
+                      S->estimate_bytes * 1e-6, (double)S->peak_bytes * 1e-6);
+        assert_true(fabs(rel) <= 0.15);
+        assert_true(S->estimate_bytes > 0);
+        run_free(&r);
+    }
+}
+
+/* The adaptive feature size: started at 4 times the lfs (test-only parameter alpha0),
+ * the elephant's legs and trunk come out with the wrong Euler characteristic; the final
+ * checks see it against the input's, alpha is halved and the run refines on until it is
+ * certified with the input's topology (genus 3). */
+static void test_feature_halving(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 1;
+    p.alpha0 = 4;
+    run r;
+    run_keep(&r, AS_TEST_DATA_DIR "/elephant.off", "euclidean", &p);
+    if (r.st != ANISTAR_OK) fail_msg("%s", anistar_last_error(r.ctx));
+    const anistar_mesh_stats *S = &r.mesh->stats;
+    assert_true(S->feature_halvings >= 1);
+    assert_true(S->feature_alpha < 4);
+    assert_int_equal(S->components, 1);
+    assert_int_equal(S->euler_characteristic, -4);
+    assert_true(S->insertions_feature > S->insertions_size);
+    run_free(&r);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_near_site_trap),
+        cmocka_unit_test(test_stall),
+        cmocka_unit_test(test_stop_request),
+        cmocka_unit_test(test_certify),
+        cmocka_unit_test(test_feature_halving),
+        cmocka_unit_test(test_refusal),
+        cmocka_unit_test(test_estimate),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

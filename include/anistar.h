@@ -58,7 +58,7 @@ ANISTAR_API int anistar_version_number(void);
 /* X-macro table: name, value, message. One table feeds the enum and the strings. */
 #define ANISTAR_STATUS_TABLE(X)                                                           \
     X(OK, 0, "success")                                                                   \
-    X(INCOMPLETE, 1, "stopped at a limit; the mesh of consistent facets is valid")       \
+    X(INCOMPLETE, 1, "stopped before a certified mesh; the mesh of consistent facets is valid") \
     X(EINVAL, 2, "invalid argument")                                                      \
     X(ENOMEM, 3, "out of memory")                                                         \
     X(EIO, 4, "input/output error")                                                       \

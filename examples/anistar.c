@@ -730,6 +730,12 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             (unsigned long long)st->insertions_approx,
             (unsigned long long)st->insertions_feature);
     fprintf(f, "  \"stall_max\": %llu,\n", (unsigned long long)st->stall_max);
+    fprintf(f, "  \"components_found\": %zu,\n  \"components_split\": %zu,\n"
+               "  \"components_joined\": %zu,\n",
+            st->components_found, st->components_split, st->components_joined);
+    fprintf(f, "  \"components_below_resolution\": %zu,\n", st->components_below_resolution);
+    fprintf(f, "  \"feature_alpha\": %.17g,\n  \"feature_halvings\": %llu,\n",
+            st->feature_alpha, (unsigned long long)st->feature_halvings);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
             (unsigned long long)st->pick_valid_tries,
             (unsigned long long)st->pick_valid_failures);

@@ -375,8 +375,10 @@ typedef struct anistar_mesh_stats {
                                      and ... */
     size_t components_joined;     /* ... sample components joined in one (a neck thinner
                                      than a cell); the final checks prove the mesh against
-                                     S itself (every edge hugs S), the grid is only a
-                                     sample */
+                                     S itself, the grid is only a sample */
+    size_t components_below_resolution; /* image isosurfaces: components of the sample
+                                     smaller than about half a voxel across (noise a hair
+                                     above the isovalue), not meshed */
     double estimate_vertices;     /* the up-front estimate (anistar_progress) */
     double estimate_bytes;
     size_t peak_bytes;            /* the most bytes the run held through the context's

@@ -56,6 +56,7 @@ typedef struct as_mesher_counters {
     uint64_t pick_tries, pick_failures;
     uint64_t stall_max;
     uint64_t halvings; /* times alpha was halved after failed final checks */
+    uint64_t specks;   /* image components below the resolution, not meshed */
     double t_init, t_refine, t_output, t_total;
     double estimate_vertices, estimate_bytes;
     int stop_reason; /* anistar_stop_reason */

@@ -322,6 +322,7 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
     T->insertions_approx = S->insertions_approx;
     T->insertions_feature = S->insertions_feature;
     T->stall_max = S->stall_max;
+    T->components_below_resolution = S->components_below_resolution;
     T->estimate_vertices = S->estimate_vertices;
     T->estimate_bytes = S->estimate_bytes;
     T->stop_reason = S->stop_reason;

@@ -172,6 +172,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_approx = cnt->cause[AS_CAUSE_APPROX];
     S->insertions_feature = cnt->cause[AS_CAUSE_FEATURE];
     S->stall_max = cnt->stall_max;
+    S->components_below_resolution = cnt->specks;
     S->estimate_vertices = cnt->estimate_vertices;
     S->estimate_bytes = cnt->estimate_bytes;
     S->stop_reason = cnt->stop_reason;
@@ -207,46 +208,102 @@ static int tri_pos(const int32_t *tri, int32_t t, int32_t a) {
     return -1;
 }
 
-/*
- * 1 in *yes when the piece oc of the mesh (vertex labels uf) bounds a region of its own:
- * the mean of its vertices is off S (inside a blob, or outside in a cavity) and each of
- * the six axis rays from there meets S within one and a half times the diagonal of the
- * piece's box. A separate component of S (a blob, a cavity) does; a fragment of a plate,
- * a tube or a larger part does not (along the part, a ray stays on one side of S past the
- * fragment).
- */
-static anistar_status piece_encloses(anistar_context *ctx, const as_surface *surf,
-                                     const as_trimesh *tm, const int32_t *uf, int32_t oc,
-                                     int *yes) {
-    *yes = 0;
-    double m[3] = {0, 0, 0}, lo[3] = {INFINITY, INFINITY, INFINITY},
-           hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    size_t n = 0;
+static void sort_g3(int32_t g[3]) {
+    for (int a = 0; a < 2; a++)
+        for (int b = a + 1; b < 3; b++)
+            if (g[b] < g[a]) {
+                int32_t t = g[a];
+                g[a] = g[b];
+                g[b] = t;
+            }
+}
+
+/* Append a refinement point x (with the Euclidean size r of what it refines) to ss->fix. */
+static anistar_status add_fix(anistar_context *ctx, as_starset *ss, const double x[3], double r) {
+    if (ss->nfix == ss->cap_fix &&
+        as_grow(ctx, (void **)&ss->fix, &ss->cap_fix, ss->nfix + 1, 4 * sizeof *ss->fix))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (final checks)");
+    double *F = ss->fix + 4 * ss->nfix++;
+    memcpy(F, x, 3 * sizeof *x);
+    F[3] = r;
+    return ANISTAR_OK;
+}
+
+/* Append the ball (x, r) to ss->trouble: where the final checks failed (the refiner
+ * halves alpha for the sites inside). */
+static anistar_status add_trouble(anistar_context *ctx, as_starset *ss, const double x[3], double r) {
+    if (ss->ntrouble == ss->cap_trouble &&
+        as_grow(ctx, (void **)&ss->trouble, &ss->cap_trouble, ss->ntrouble + 1,
+                4 * sizeof *ss->trouble))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (final checks)");
+    double *T = ss->trouble + 4 * ss->ntrouble++;
+    memcpy(T, x, 3 * sizeof *x);
+    T[3] = r;
+    return ANISTAR_OK;
+}
+
+/* The ball around piece oc of the mesh (vertex labels uf): its box's center, three times
+ * its diagonal (the piece and the part it came from around it). */
+static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const as_trimesh *tm,
+                                    const int32_t *uf, int32_t oc) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t v = 0; v < tm->nv; v++) {
         if (uf[v] != oc) continue;
         for (int k = 0; k < 3; k++) {
             double x = tm->xyz[3 * v + k];
-            m[k] += x;
             if (x < lo[k]) lo[k] = x;
             if (x > hi[k]) hi[k] = x;
         }
-        n++;
     }
-    if (!n) return ANISTAR_OK;
-    for (int k = 0; k < 3; k++) m[k] /= (double)n;
-    int side = 0;
-    anistar_status s = as_surface_side(ctx, surf, m, &side);
-    if (s != ANISTAR_OK || side == 0) return s;
+    double c[3], d2 = 0;
+    for (int k = 0; k < 3; k++) {
+        c[k] = 0.5 * (lo[k] + hi[k]);
+        d2 += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    }
+    return add_trouble(ctx, ss, c, 3 * sqrt(d2));
+}
+
+/*
+ * 1 in *yes when the piece oc of the mesh (vertex labels uf, one of its vertices v0)
+ * bounds a region of its own: from a point just off S at v0, on one side or the other,
+ * each of the six axis rays meets S within one and a half times the diagonal of the
+ * piece's box. From inside a separate blob (or inside a cavity) every ray leaves through
+ * the piece; from inside a fragment of a plate, a tube or a larger part, a ray along the
+ * part stays inside S past the fragment, and from the other side rays go away from S.
+ */
+static anistar_status piece_encloses(anistar_context *ctx, const as_surface *surf,
+                                     const as_trimesh *tm, const int32_t *uf, int32_t oc,
+                                     int32_t v0, int *yes) {
+    *yes = 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < tm->nv; v++) {
+        if (uf[v] != oc) continue;
+        for (int k = 0; k < 3; k++) {
+            double x = tm->xyz[3 * v + k];
+            if (x < lo[k]) lo[k] = x;
+            if (x > hi[k]) hi[k] = x;
+        }
+    }
     double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
-    double len = 1.5 * sqrt(dx * dx + dy * dy + dz * dz);
-    for (int d = 0; d < 6; d++) {
-        double e[3] = {m[0], m[1], m[2]}, x[3];
-        e[d >> 1] += (d & 1) ? -len : len;
-        int hit = 0;
-        if ((s = as_surface_crossing(ctx, surf, m, e, m, &hit, x)) != ANISTAR_OK) return s;
-        if (!hit) return ANISTAR_OK;
+    double diag = sqrt(dx * dx + dy * dy + dz * dz), len = 1.5 * diag;
+    const double *x0 = tm->xyz + 3 * (size_t)v0;
+    double n[3];
+    int sing = 0;
+    anistar_status s = as_surface_normal_at(ctx, surf, x0, n, &sing);
+    if (s != ANISTAR_OK || sing) return s;
+    for (int side = -1; side <= 1 && !*yes; side += 2) {
+        double m[3];
+        for (int k = 0; k < 3; k++) m[k] = x0[k] + side * 1e-3 * diag * n[k];
+        int all = 1;
+        for (int d = 0; d < 6 && all; d++) {
+            double e[3] = {m[0], m[1], m[2]}, x[3];
+            e[d >> 1] += (d & 1) ? -len : len;
+            int hit = 0;
+            if ((s = as_surface_crossing(ctx, surf, m, e, m, &hit, x)) != ANISTAR_OK) return s;
+            all = hit;
+        }
+        *yes = all;
     }
-    *yes = 1;
     return ANISTAR_OK;
 }
 
@@ -287,6 +344,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     *refinable = 0;
     *sig = 0;
     ss->nfix = 0;
+    ss->ntrouble = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         const as_star *st = ss->stars[v];
         if (!st->closed) {
@@ -408,6 +466,9 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     } else if (flip[u] != want) {
                         const double *x = tm->xyz + 3 * (size_t)a;
                         *sig = AS_CERT_ORIENT;
+                        const double everywhere[3] = {0, 0, 0};
+                        if ((s = add_trouble(ctx, ss, everywhere, INFINITY)) != ANISTAR_OK)
+                            goto done;
                         as_fail(ctx, ANISTAR_INCOMPLETE,
                                 "mesher: uncertified: the mesh is not orientable near "
                                 "(%.17g, %.17g, %.17g)",
@@ -481,13 +542,26 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                             "it bridges a gap between two parts of S",
                             x[0], x[1], x[2], y[0], y[1], y[2], sqrt(d2), sqrt(d2 / (0.25 * e2)));
                 }
-                /* the point of S it misses: a refinement point (the refiner inserts it) */
-                if (ss->nfix == ss->cap_fix &&
-                    as_grow(ctx, (void **)&ss->fix, &ss->cap_fix, ss->nfix + 1, 4 * sizeof *ss->fix))
-                    goto nomem;
-                double *F = ss->fix + 4 * ss->nfix++;
-                memcpy(F, q, sizeof q);
-                F[3] = 0.5 * sqrt(e2);
+                /* refinement points (the refiner inserts them): the point of S the edge
+                 * misses, and the surface centers of the two facets on the edge (a facet
+                 * whose center is inserted dies, as in rule 1) */
+                if ((s = add_fix(ctx, ss, q, 0.5 * sqrt(e2))) != ANISTAR_OK ||
+                    (s = add_trouble(ctx, ss, mid, 4 * sqrt(e2))) != ANISTAR_OK)
+                    goto done;
+                for (int32_t j = start[a]; j < start[a + 1]; j++) {
+                    int32_t u = inc[j];
+                    if (tri_pos(tm->tri, u, b) < 0) continue;
+                    int32_t g[3];
+                    for (int i = 0; i < 3; i++) g[i] = m->gid[tm->tri[3 * (size_t)u + i]];
+                    sort_g3(g);
+                    const as_star *sv = ss->stars[g[0]];
+                    int32_t fi = as_star_find(sv, g);
+                    if (fi < 0) continue;
+                    const double *c = sv->rf[fi].c, *o = ss->xyz + 3 * (size_t)g[0];
+                    double rc = sqrt((c[0] - o[0]) * (c[0] - o[0]) + (c[1] - o[1]) * (c[1] - o[1]) +
+                                     (c[2] - o[2]) * (c[2] - o[2]));
+                    if ((s = add_fix(ctx, ss, c, rc)) != ANISTAR_OK) goto done;
+                }
             }
         }
     }
@@ -513,6 +587,8 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input component %d came out as two or more "
                         "pieces, one of them around (%.17g, %.17g, %.17g)",
                         (int)c, x[0], x[1], x[2]);
+                if ((s = trouble_piece(ctx, ss, tm, uf, oc)) == ANISTAR_OK)
+                    s = trouble_piece(ctx, ss, tm, uf, sc_out[c]);
                 goto done;
             }
         } else {
@@ -525,6 +601,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input components %d and %d are joined in one "
                         "piece of the mesh around (%.17g, %.17g, %.17g)",
                         (int)cs[oc], (int)c, x[0], x[1], x[2]);
+                s = trouble_piece(ctx, ss, tm, uf, oc);
                 goto done;
             }
             m->stats.components_joined++;
@@ -551,21 +628,25 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
         const double *x = tm->xyz + 3 * (size_t)cvert[oc];
         if (!exact) {
             int yes = 0;
-            if ((s = piece_encloses(ctx, ss->surf, tm, uf, (int32_t)oc, &yes)) != ANISTAR_OK)
+            if ((s = piece_encloses(ctx, ss->surf, tm, uf, (int32_t)oc, cvert[oc], &yes)) !=
+                ANISTAR_OK)
                 goto done;
             if (yes) {
                 if (cs[oc] < 0) m->stats.components_found++;
                 continue;
             }
         }
-        *sig = AS_CERT_PIECE | (uint64_t)oc;
-        as_fail(ctx, ANISTAR_INCOMPLETE,
-                "mesher: uncertified: a piece of the mesh around (%.17g, %.17g, %.17g) %s: a "
-                "fragment of a thinner part (plate, tube, neck) than the facets resolved",
-                x[0], x[1], x[2],
-                exact ? "covers no input component" : "bounds no region of its own");
-        goto done;
+        if (!*sig) {
+            *sig = AS_CERT_PIECE | (uint64_t)oc;
+            as_fail(ctx, ANISTAR_INCOMPLETE,
+                    "mesher: uncertified: a piece of the mesh around (%.17g, %.17g, %.17g) %s: "
+                    "a fragment of a thinner part (plate, tube, neck) than the facets resolved",
+                    x[0], x[1], x[2],
+                    exact ? "covers no input component" : "bounds no region of its own");
+        }
+        if ((s = trouble_piece(ctx, ss, tm, uf, (int32_t)oc)) != ANISTAR_OK) goto done;
     }
+    if (*sig) goto done;
     if (as_surface_is_mesh(ss->surf)) {
         as_mesh_info mi;
         as_mesh_surface_info(ss->surf, &mi);
@@ -573,15 +654,18 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
             const double *x = tm->xyz + 3 * (size_t)cvert[oc];
             long long chi = cchi[oc] / 2, want = mi.ceuler[cs[oc]];
             if (cchi[oc] % 2 != 0 || chi != want) {
-                *sig = AS_CERT_EULER | (uint64_t)oc;
-                as_fail(ctx, ANISTAR_INCOMPLETE,
-                        "mesher: uncertified: the mesh component around (%.17g, %.17g, %.17g) "
-                        "has Euler characteristic %lld, the input component %lld: features "
-                        "finer than the sampling (try a smaller r0)",
-                        x[0], x[1], x[2], chi, want);
-                goto done;
+                if (!*sig) {
+                    *sig = AS_CERT_EULER | (uint64_t)oc;
+                    as_fail(ctx, ANISTAR_INCOMPLETE,
+                            "mesher: uncertified: the mesh component around (%.17g, %.17g, "
+                            "%.17g) has Euler characteristic %lld, the input component %lld: "
+                            "features finer than the sampling",
+                            x[0], x[1], x[2], chi, want);
+                }
+                if ((s = trouble_piece(ctx, ss, tm, uf, (int32_t)oc)) != ANISTAR_OK) goto done;
             }
         }
+        if (*sig) goto done;
     }
     *ok = 1;
     *refinable = 0;

@@ -4,6 +4,7 @@
  */
 #include "mesher/refine.h"
 #include "mesher/optimize.h"
+#include "mesher/starmove.h"
 
 #include <math.h>
 #include <string.h>
@@ -122,12 +123,13 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
      * v's star stay below alpha times v's local feature size in M_v */
     if (v >= ss->first_site) {
         double lfs;
-        anistar_status s = as_starset_lfs(ss, v, f->r / ss->alpha, &lfs);
+        const double alpha = ss->alpha * ss->ascale[v];
+        anistar_status s = as_starset_lfs(ss, v, f->r / alpha, &lfs);
         if (s != ANISTAR_OK) {
             *err = s;
             return 0;
         }
-        double x = f->r / (ss->alpha * lfs);
+        double x = f->r / (alpha * lfs);
         if (x >= 1 && x > viol) {
             viol = x;
             why = AS_CAUSE_FEATURE;
@@ -517,6 +519,48 @@ static anistar_status topology_point(refiner *R, int32_t v, double out[3], doubl
         memcpy(out, c, sizeof c);
         *found = 1;
     }
+    if (*found) return ANISTAR_OK;
+    /* design: nothing crosses (v on a part of S smaller than its cell, e.g. a speck): probe
+     * S around v, projecting points of v's tangent plane at distances falling by 4 from
+     * the nearest circumradius; the farthest that conflicts with v's star is the point */
+    double n[3];
+    int sing = 0;
+    if ((s = as_surface_normal_at(R->ctx, ss->surf, x, n, &sing)) != ANISTAR_OK) return s;
+    if (sing) return ANISTAR_OK;
+    double t1[3], t2[3], a[3] = {0, 0, 0};
+    a[fabs(n[0]) < 0.6 ? 0 : fabs(n[1]) < 0.6 ? 1 : 2] = 1;
+    double dn = a[0] * n[0] + a[1] * n[1] + a[2] * n[2], l = 0;
+    for (int k = 0; k < 3; k++) {
+        t1[k] = a[k] - dn * n[k];
+        l += t1[k] * t1[k];
+    }
+    for (int k = 0; k < 3; k++) t1[k] /= sqrt(l);
+    t2[0] = n[1] * t1[2] - n[2] * t1[1];
+    t2[1] = n[2] * t1[0] - n[0] * t1[2];
+    t2[2] = n[0] * t1[1] - n[1] * t1[0];
+    double rad = INFINITY;
+    for (int32_t i = 0; i < st->nitet; i++) {
+        const double *S = st->isph + 4 * (size_t)i;
+        if (S[3] > 0 && S[3] < rad * rad) rad = sqrt(S[3]);
+    }
+    if (!isfinite(rad)) return ANISTAR_OK;
+    for (int k = 0; k < 12 && !*found; k++, rad *= 0.25) {
+        for (int j = 0; j < 6; j++) {
+            double ang = 1.0471975511965976 * j, y[3], w[3], q[3];
+            for (int i = 0; i < 3; i++) y[i] = rad * (cos(ang) * t1[i] + sin(ang) * t2[i]);
+            as_metric_unapply(mf, y, w); /* M_v length rad in a tangent direction */
+            for (int i = 0; i < 3; i++) q[i] = x[i] + w[i];
+            s = as_surface_project(R->ctx, ss->surf, q, q);
+            if (s == ANISTAR_ENOSURFACE) continue;
+            if (s != ANISTAR_OK) return s;
+            double d = as_metric_dist(mf, q, x);
+            if (!(d > 1e-6 * rad) || d <= *dist) continue;
+            if (!as_star_conflicts(st, mf, q, ss->n, NULL)) continue;
+            *dist = d;
+            memcpy(out, q, sizeof q);
+            *found = 1;
+        }
+    }
     return ANISTAR_OK;
 }
 
@@ -538,8 +582,18 @@ static anistar_status initial_points(refiner *R) {
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (initial points)");
     }
     if ((s = as_starset_add_poles(ss, smp.points, (int32_t)smp.n, 256)) != ANISTAR_OK) goto done;
-    ss->nscomp = (int32_t)smp.ncomponents;
+    ss->nscomp = 0;
+    /* design: an image's isosurface has specks from noise far below its voxels (a value a
+     * hair above iso at one point): a component whose area is below the square of the
+     * feature-size floor (about half a voxel) is below the image's resolution and is not
+     * meshed (counted); every other kind meshes every component found */
+    const double tiny = as_surface_is_image(ss->surf) ? ss->feat.floor_e * ss->feat.floor_e : 0;
     for (size_t c = 0; c < smp.ncomponents; c++) {
+        if (smp.area && smp.area[c] < tiny) {
+            R->cnt.specks++;
+            continue;
+        }
+        const int32_t label = ss->nscomp++;
         size_t nc = 0, first = SIZE_MAX;
         for (size_t i = 0; i < smp.n; i++)
             if ((size_t)smp.component[i] == c) {
@@ -557,7 +611,7 @@ static anistar_status initial_points(refiner *R) {
             if (!is_duplicate(ss, p)) {
                 int32_t gid = ss->n;
                 if ((s = insert_point(R, p)) != ANISTAR_OK) goto done;
-                ss->scomp[gid] = (int32_t)c;
+                ss->scomp[gid] = label;
                 R->cnt.initial++;
             }
             dist[pick] = -1;
@@ -646,11 +700,12 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
     return ANISTAR_OK;
 }
 
-/* Queue for rule 1 every restricted facet that violates it now (after alpha changed). */
-static anistar_status requeue_rule1(refiner *R) {
+/* Queue for rule 1 every restricted facet of star v that violates it now (after its
+ * alpha changed). */
+static anistar_status requeue_rule1(refiner *R, int32_t v) {
     as_starset *ss = R->ss;
     anistar_status s;
-    for (int32_t v = ss->first_site; v < ss->n; v++) {
+    {
         as_star *st = ss->stars[v];
         for (int32_t i = 0; i < st->nrf; i++) {
             as_rfacet *f = &st->rf[i];
@@ -663,6 +718,43 @@ static anistar_status requeue_rule1(refiner *R) {
             f->queued |= 1;
         }
     }
+    return ANISTAR_OK;
+}
+
+/*
+ * Halve the alpha of the sites inside the balls where the final checks failed
+ * (ss->trouble), down to AS_FEATURE_ALPHA_MIN, and queue their stars' facets that now
+ * violate rule 1; *halved = the sites changed (0: nothing left to refine there).
+ */
+static anistar_status halve_alpha(refiner *R, size_t *halved) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    *halved = 0;
+    uint32_t ep = as_starset_next_epoch(ss);
+    for (size_t k = 0; k < ss->ntrouble; k++) {
+        const double *T = ss->trouble + 4 * k;
+        double lo[3], hi[3];
+        for (int j = 0; j < 3; j++) {
+            lo[j] = T[j] - T[3];
+            hi[j] = T[j] + T[3];
+        }
+        if ((s = as_kdtree_box_any(R->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK) return s;
+        for (size_t i = 0; i < ss->ids.n; i++) {
+            int32_t v = ss->ids.ids[i];
+            if (v < ss->first_site || ss->stamp[v] == ep) continue;
+            const double *x = ss->xyz + 3 * (size_t)v;
+            double d2 = 0;
+            for (int j = 0; j < 3; j++) d2 += (x[j] - T[j]) * (x[j] - T[j]);
+            if (!(d2 <= T[3] * T[3])) continue;
+            ss->stamp[v] = ep;
+            if (0.5 * ss->alpha * ss->ascale[v] < AS_FEATURE_ALPHA_MIN) continue;
+            ss->ascale[v] *= 0.5;
+            (*halved)++;
+        }
+    }
+    /* the stars whose alpha changed, in id order (deterministic) */
+    for (int32_t v = ss->first_site; v < ss->n && *halved; v++)
+        if (ss->stamp[v] == ep && (s = requeue_rule1(R, v)) != ANISTAR_OK) return s;
     return ANISTAR_OK;
 }
 
@@ -849,13 +941,18 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                     if (s != ANISTAR_OK) break;
                     if (added) continue;
                 }
-                if (refinable && 0.5 * ss->alpha >= AS_FEATURE_ALPHA_MIN) {
-                    as_mesh_free(done);
-                    done = NULL;
-                    ss->alpha *= 0.5;
-                    R.cnt.halvings++;
-                    if ((s = requeue_rule1(&R)) != ANISTAR_OK) break;
-                    continue;
+                if (refinable) {
+                    /* design: halve alpha where the checks failed (the balls they left
+                     * in ss->trouble), not everywhere: the cost of a thin part stays at
+                     * the thin part */
+                    size_t halved = 0;
+                    if ((s = halve_alpha(&R, &halved)) != ANISTAR_OK) break;
+                    if (halved) {
+                        as_mesh_free(done);
+                        done = NULL;
+                        R.cnt.halvings++;
+                        continue;
+                    }
                 }
                 R.cnt.stop_reason = ANISTAR_STOP_UNCERTIFIED;
                 break;
@@ -965,6 +1062,9 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             S->seconds_total = t3 - t0;
             S->stop_reason = R.cnt.stop_reason;
             S->feature_alpha = ss->alpha;
+            for (int32_t v = ss->first_site; v < ss->n; v++)
+                if (ss->alpha * ss->ascale[v] < S->feature_alpha)
+                    S->feature_alpha = ss->alpha * ss->ascale[v];
             S->feature_halvings = R.cnt.halvings;
             S->peak_bytes = ctx->peak - bytes0;
             if (!complete) s = as_fail(ctx, ANISTAR_INCOMPLETE, "%s", msg);

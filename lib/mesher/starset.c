@@ -25,7 +25,9 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
     uint32_t *sp = as_alloc_array(ss->ctx, cap, sizeof *sp);
     double *lf = as_alloc_array(ss->ctx, cap, sizeof *lf);
     int32_t *sc = as_alloc_array(ss->ctx, cap, sizeof *sc);
-    if (!x || !m || !st || !sp || !lf || !sc) {
+    double *as = as_alloc_array(ss->ctx, cap, sizeof *as);
+    if (!x || !m || !st || !sp || !lf || !sc || !as) {
+        as_free(ss->ctx, as, cap * sizeof *as);
         as_free(ss->ctx, x, cap * 3 * sizeof *x);
         as_free(ss->ctx, m, cap * sizeof *m);
         as_free(ss->ctx, st, cap * sizeof *st);
@@ -41,12 +43,14 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
         memcpy(sp, ss->stamp, old * sizeof *sp);
         memcpy(lf, ss->lfs, old * sizeof *lf);
         memcpy(sc, ss->scomp, old * sizeof *sc);
+        memcpy(as, ss->ascale, old * sizeof *as);
     }
     for (size_t i = old; i < cap; i++) {
         st[i] = NULL;
         sp[i] = 0;
         lf[i] = NAN;
         sc[i] = -1;
+        as[i] = 1;
     }
     as_free(ss->ctx, ss->xyz, old * 3 * sizeof *x);
     as_free(ss->ctx, ss->mf, old * sizeof *m);
@@ -54,6 +58,7 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
     as_free(ss->ctx, ss->stamp, old * sizeof *sp);
     as_free(ss->ctx, ss->lfs, old * sizeof *lf);
     as_free(ss->ctx, ss->scomp, old * sizeof *sc);
+    as_free(ss->ctx, ss->ascale, old * sizeof *as);
     ss->xyz = x;
     ss->env.xyz = x;
     ss->mf = m;
@@ -61,6 +66,7 @@ static anistar_status grow_points(as_starset *ss, int32_t need) {
     ss->stamp = sp;
     ss->lfs = lf;
     ss->scomp = sc;
+    ss->ascale = as;
     ss->cap = (int32_t)cap;
     return ANISTAR_OK;
 }
@@ -318,8 +324,10 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->stamp, cap * sizeof *ss->stamp);
     as_free(ctx, ss->lfs, cap * sizeof *ss->lfs);
     as_free(ctx, ss->scomp, cap * sizeof *ss->scomp);
+    as_free(ctx, ss->ascale, cap * sizeof *ss->ascale);
     as_feature_free(ctx, &ss->feat);
     as_free(ctx, ss->fix, ss->cap_fix * 4 * sizeof *ss->fix);
+    as_free(ctx, ss->trouble, ss->cap_trouble * 4 * sizeof *ss->trouble);
     as_free(ctx, ss->tab, ss->tab_cap * sizeof *ss->tab);
     as_free(ctx, ss->inc, ss->cap_inc * sizeof *ss->inc);
     as_free(ctx, ss->ev, ss->cap_ev * sizeof *ss->ev);

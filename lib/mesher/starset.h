@@ -67,10 +67,14 @@ typedef struct as_starset {
     double *lfs;             /* per id: lfs in its own metric (NaN: not computed yet) */
     int32_t *scomp;          /* per id: the sample component of an initial site, or -1 */
     int32_t nscomp;          /* components of the surface sample */
-    double alpha;            /* the feature-size fraction in force (AS_FEATURE_ALPHA...) */
+    double alpha;            /* the feature-size fraction (AS_FEATURE_ALPHA), times each
+                                site's ascale */
     double *fix;             /* points of S the final checks found the mesh missing (4 per
                                 point: x, y, z, the radius of the edge that missed it) */
     size_t nfix, cap_fix;
+    double *trouble;         /* balls where the final checks failed (x, y, z, radius) */
+    size_t ntrouble, cap_trouble;
+    double *ascale;          /* per id: the site's own factor on alpha (1, halved in trouble) */
     as_boxindex *bi;         /* conflict-zone box of each star, keyed by global id */
 
     /* events since the refiner last drained them */

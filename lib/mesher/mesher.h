@@ -101,8 +101,8 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
  * The final checks of a complete run (anistar_mesher_run's contract for ANISTAR_OK), on
  * the output m of the star set ss (output.c): every site's star one closed fan; the mesh
  * non-empty, a closed 2-manifold, consistently oriented (m's triangles are reoriented
- * per component when needed, outward by the normals of S); no edge bridging a gap
- * (step 4 of the design in output.c); every sample component
+ * per component when needed, outward by the normals of S); no edge bridging a gap or
+ * cutting through a thin part (step 4 of the design in output.c); every sample component
  * meshed; for a triangle-mesh surface its components exactly (none split, joined or
  * extra) with their Euler characteristics. *ok = 1 when all hold; otherwise *ok = 0, ctx's
  * message names the first failure and a point on it, *sig identifies it (AS_CERT_* and

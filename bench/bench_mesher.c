@@ -81,6 +81,16 @@ int main(int argc, char **argv) {
     printf("insertions           initial %llu, rule1 %llu, rule2 %llu, rule3 %llu\n",
            (unsigned long long)S.insertions_initial, (unsigned long long)S.insertions_rule[0],
            (unsigned long long)S.insertions_rule[1], (unsigned long long)S.insertions_rule[2]);
+    printf("rule 1 causes        size %llu, distortion %llu, approx %llu, feature %llu; "
+           "topology %llu\n",
+           (unsigned long long)S.insertions_size, (unsigned long long)S.insertions_distortion,
+           (unsigned long long)S.insertions_approx, (unsigned long long)S.insertions_feature,
+           (unsigned long long)S.insertions_topology);
+    printf("estimate             %.0f vertices, %.0f bytes (measured %zu bytes)\n",
+           S.estimate_vertices, S.estimate_bytes, S.peak_bytes);
+    printf("stop / stall_max     %s / %llu; feature_alpha %g (%llu halvings)\n",
+           anistar_stop_reason_name(S.stop_reason), (unsigned long long)S.stall_max,
+           S.feature_alpha, (unsigned long long)S.feature_halvings);
     printf("pick_valid           tries %llu, failures %llu\n",
            (unsigned long long)S.pick_valid_tries, (unsigned long long)S.pick_valid_failures);
     printf("rho_max r_max gamma  %.3f %.4f %.3f\n", S.rho_max, S.r_max, S.gamma_max);

@@ -103,6 +103,62 @@ static anistar_status medial_ball(anistar_context *ctx, const as_surface *surf,
     return ANISTAR_OK;
 }
 
+/*
+ * Keep one medial point per cube of side h (the first in sample order: deterministic):
+ * the medial balls of many sample points share a center (all of a sphere's inner balls
+ * meet at its center) and a box query would return them all.
+ */
+static anistar_status thin_points(anistar_context *ctx, as_feature *fe, double h) {
+    int32_t n = fe->n;
+    uint64_t *key = as_alloc_array(ctx, (size_t)n, sizeof *key);
+    int32_t *ord = as_alloc_array(ctx, (size_t)n, sizeof *ord);
+    if (!key || !ord) {
+        as_free(ctx, key, (size_t)n * sizeof *key);
+        as_free(ctx, ord, (size_t)n * sizeof *ord);
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (medial points)");
+    }
+    for (int32_t i = 0; i < n; i++) {
+        uint64_t k = 1469598103934665603ull;
+        for (int j = 0; j < 3; j++) {
+            int64_t c = (int64_t)floor(fe->pts[3 * (size_t)i + j] / h);
+            k = (k ^ (uint64_t)c) * 1099511628211ull;
+        }
+        key[i] = k;
+        ord[i] = i;
+    }
+    /* shell sort of the indices by (key, index) */
+    for (int32_t gap = n / 2; gap > 0; gap /= 2)
+        for (int32_t i = gap; i < n; i++) {
+            int32_t x = ord[i], j = i;
+            while (j >= gap && (key[ord[j - gap]] > key[x] ||
+                                (key[ord[j - gap]] == key[x] && ord[j - gap] > x))) {
+                ord[j] = ord[j - gap];
+                j -= gap;
+            }
+            ord[j] = x;
+        }
+    /* keep the first of each run of equal keys (a hash collision only drops a point):
+     * key[] then holds the marks */
+    uint64_t prev = 0;
+    for (int32_t i = 0; i < n; i++) {
+        int32_t x = ord[i];
+        uint64_t k = key[x];
+        key[x] = (i == 0 || k != prev); /* key[] now holds the marks */
+        prev = k;
+    }
+    int32_t m = 0;
+    for (int32_t i = 0; i < n; i++) {
+        if (!key[i]) continue;
+        memmove(fe->pts + 3 * (size_t)m, fe->pts + 3 * (size_t)i, 3 * sizeof *fe->pts);
+        fe->rad[m] = fe->rad[i];
+        m++;
+    }
+    fe->n = m;
+    as_free(ctx, key, (size_t)n * sizeof *key);
+    as_free(ctx, ord, (size_t)n * sizeof *ord);
+    return ANISTAR_OK;
+}
+
 anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_feature *fe) {
     memset(fe, 0, sizeof *fe);
     as_point_sample smp;
@@ -134,7 +190,9 @@ anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as
             if ((s = add_point(ctx, fe, c, rho)) != ANISTAR_OK) goto done;
         }
     }
-    if (fe->n > 0) s = as_kdtree_build(ctx, fe->pts, NULL, (size_t)fe->n, &fe->kd);
+    if (fe->n > 0) s = thin_points(ctx, fe, 0.25 * (smp.spacing > 0 ? smp.spacing : fe->floor_e));
+    if (s == ANISTAR_OK && fe->n > 0)
+        s = as_kdtree_build(ctx, fe->pts, NULL, (size_t)fe->n, &fe->kd);
 done:
     if (kd) as_kdtree_free(ctx, kd);
     as_surface_sample_free(ctx, &smp);

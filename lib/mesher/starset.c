@@ -989,9 +989,12 @@ anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lf
         *lfs = ss->lfs[v];
         return ANISTAR_OK;
     }
+    /* design: the exact value once per site (one kd-tree query for a bound, one box query),
+     * cached: cheaper than a bound per facet event (need is then only a hint) */
+    (void)need;
     int exact = 0;
     anistar_status s = as_feature_lfs(ss->ctx, &ss->feat, &ss->mf[v], ss->xyz + 3 * (size_t)v,
-                                      need, &ss->fids, lfs, &exact);
+                                      0, &ss->fids, lfs, &exact);
     if (s == ANISTAR_OK && exact) ss->lfs[v] = *lfs;
     return s;
 }

@@ -734,6 +734,8 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
                "  \"components_joined\": %zu,\n",
             st->components_found, st->components_split, st->components_joined);
     fprintf(f, "  \"components_below_resolution\": %zu,\n", st->components_below_resolution);
+    fprintf(f, "  \"pieces_below_resolution\": %zu,\n  \"edges_below_resolution\": %zu,\n",
+            st->pieces_below_resolution, st->edges_below_resolution);
     fprintf(f, "  \"feature_alpha\": %.17g,\n  \"feature_halvings\": %llu,\n",
             st->feature_alpha, (unsigned long long)st->feature_halvings);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",

@@ -379,6 +379,13 @@ typedef struct anistar_mesh_stats {
     size_t components_below_resolution; /* image isosurfaces: components of the sample
                                      smaller than about half a voxel across (noise a hair
                                      above the isovalue), not meshed */
+    size_t pieces_below_resolution; /* implicit and image surfaces: pieces of the output
+                                     that fit in a ball of the surface's resolution (the
+                                     feature size's floor): accepted without proving that
+                                     they bound a region of their own */
+    size_t edges_below_resolution; /* edges across a gap or a plate (opposite normals at
+                                     their ends) whose midpoint is within the resolution
+                                     of S: accepted, the gap is not resolved */
     double estimate_vertices;     /* the up-front estimate (anistar_progress) */
     double estimate_bytes;
     size_t peak_bytes;            /* the most bytes the run held through the context's

@@ -386,6 +386,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     int32_t *cs = NULL;      /* per component: its sample component, -1 none, -2 several */
     int32_t *cvert = NULL;   /* per component: a vertex, for messages */
     long long *cchi = NULL;  /* per component: V - F/2 (times 2 during counting) */
+    double *cbox = NULL;     /* per component: its box, lo[3] hi[3] */
     int32_t *sc_out = NULL;  /* per sample component: its output component, -1 none */
     uint8_t *split = NULL;   /* per sample component: its sites are in two pieces or more */
     s = ANISTAR_OK;
@@ -417,18 +418,29 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     cs = as_alloc_array(ctx, cap_c, sizeof *cs);
     cvert = as_alloc_array(ctx, cap_c, sizeof *cvert);
     cchi = as_alloc_array(ctx, cap_c, sizeof *cchi);
+    cbox = as_alloc_array(ctx, cap_c, 6 * sizeof *cbox);
     sc_out = as_alloc_array(ctx, ss->nscomp > 0 ? (size_t)ss->nscomp : 1, sizeof *sc_out);
     split = as_alloc_array(ctx, ss->nscomp > 0 ? (size_t)ss->nscomp : 1, sizeof *split);
-    if (!vote || !cs || !cvert || !cchi || !sc_out || !split) goto nomem;
+    if (!vote || !cs || !cvert || !cchi || !cbox || !sc_out || !split) goto nomem;
     for (size_t c = 0; c < ncomp; c++) {
         vote[c] = 0;
         cs[c] = -1;
         cvert[c] = -1;
         cchi[c] = 0;
+        for (int k = 0; k < 3; k++) {
+            cbox[6 * c + k] = INFINITY;
+            cbox[6 * c + 3 + k] = -INFINITY;
+        }
     }
     for (size_t v = 0; v < nv; v++) {
         if (cvert[uf[v]] < 0) cvert[uf[v]] = (int32_t)v;
         cchi[uf[v]] += 2;
+        double *B = cbox + 6 * (size_t)uf[v];
+        for (int k = 0; k < 3; k++) {
+            double x = tm->xyz[3 * v + k];
+            if (x < B[k]) B[k] = x;
+            if (x > B[3 + k]) B[3 + k] = x;
+        }
     }
     for (size_t t = 0; t < nt; t++) {
         tcomp[t] = uf[tm->tri[3 * t]];
@@ -436,6 +448,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     }
     m->stats.components = ncomp;
     m->stats.components_found = m->stats.components_split = m->stats.components_joined = 0;
+    m->stats.pieces_below_resolution = m->stats.edges_below_resolution = 0;
     *refinable = 1; /* from here on, every failure is one of topology */
     /* 3. consistent orientation by breadth-first search; flip[t] relative to the seed */
     for (size_t t = 0; t < nt; t++) flip[t] = -1;
@@ -505,6 +518,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     }
     (void)flipped;
     /* 4. fidelity: every edge hugs S (see the design note) */
+    const double floor2 = ss->feat.floor_e * ss->feat.floor_e;
     for (size_t t = 0; t < nt; t++) {
         const int32_t *T = tm->tri + 3 * t;
         for (int k = 0; k < 3; k++) {
@@ -537,6 +551,12 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     goto done;
                 if (sx || sy || nx[0] * ny[0] + nx[1] * ny[1] + nx[2] * ny[2] > AS_CERT_OPPOSITE)
                     continue;
+                if (d2 <= floor2) {
+                    /* the gap or the plate is narrower than twice the surface's own
+                     * resolution (the feature size's floor): not resolved, by design */
+                    m->stats.edges_below_resolution++;
+                    continue;
+                }
                 if (!*sig) {
                     *sig = AS_CERT_FIDELITY;
                     as_fail(ctx, ANISTAR_INCOMPLETE,
@@ -630,6 +650,15 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
         if (alone) continue;
         const double *x = tm->xyz + 3 * (size_t)cvert[oc];
         if (!exact) {
+            /* a piece that fits in a ball of the floor's radius: whatever joins it to
+             * the rest of S, or whether it bounds a region, is below the resolution */
+            const double *B = cbox + 6 * oc;
+            double dd = (B[3] - B[0]) * (B[3] - B[0]) + (B[4] - B[1]) * (B[4] - B[1]) +
+                        (B[5] - B[2]) * (B[5] - B[2]);
+            if (dd <= 4 * ss->feat.floor_e * ss->feat.floor_e) {
+                m->stats.pieces_below_resolution++;
+                continue;
+            }
             int yes = 0;
             if ((s = piece_encloses(ctx, ss->surf, tm, uf, (int32_t)oc, cvert[oc], &yes)) !=
                 ANISTAR_OK)
@@ -687,6 +716,7 @@ done:
     as_free(ctx, cs, cap_c * sizeof *cs);
     as_free(ctx, cvert, cap_c * sizeof *cvert);
     as_free(ctx, cchi, cap_c * sizeof *cchi);
+    as_free(ctx, cbox, cap_c * 6 * sizeof *cbox);
     as_free(ctx, sc_out, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *sc_out);
     as_free(ctx, split, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *split);
     return s;

@@ -279,22 +279,40 @@ static anistar_status insert_point(refiner *R, const double p[3]) {
     return drain(R);
 }
 
-anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
-                                     const int32_t g[3], double r) {
-    anistar_context *ctx = ss->ctx;
+/* The first site or pole q (in *q, -1 if none) within M_v distance lim of p (its
+ * distance in *d). OK or ENOMEM. */
+static anistar_status site_within(as_starset *ss, const double p[3], int32_t v, double lim,
+                                  int32_t *q, double *d) {
     const as_metric_frame *mf = &ss->mf[v];
-    double h[3], lo[3], hi[3], lim = AS_NEAR_SITE * r;
+    double h[3], lo[3], hi[3];
+    *q = -1;
+    *d = INFINITY;
     as_metric_ellipsoid_box(mf, lim, h);
     for (int k = 0; k < 3; k++) {
         lo[k] = p[k] - h[k] * (1 + 1e-9) - 1e-300;
         hi[k] = p[k] + h[k] * (1 + 1e-9) + 1e-300;
     }
-    anistar_status s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &ss->ids);
+    anistar_status s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids);
     if (s != ANISTAR_OK) return s;
     for (size_t k = 0; k < ss->ids.n; k++) {
-        int32_t q = ss->ids.ids[k];
-        double d = as_metric_dist(mf, p, ss->xyz + 3 * (size_t)q);
-        if (!(d < lim)) continue;
+        int32_t u = ss->ids.ids[k];
+        double e = as_metric_dist(mf, p, ss->xyz + 3 * (size_t)u);
+        if (!(e < lim)) continue;
+        *q = u;
+        *d = e;
+        break;
+    }
+    return ANISTAR_OK;
+}
+
+anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
+                                     const int32_t g[3], double r) {
+    anistar_context *ctx = ss->ctx;
+    double lim = AS_NEAR_SITE * r, d;
+    int32_t q;
+    anistar_status s = site_within(ss, p, v, lim, &q, &d);
+    if (s != ANISTAR_OK) return s;
+    if (q >= 0) {
         if (g)
             return as_fail(ctx, ANISTAR_EINTERNAL,
                            "mesher: the refinement point (%.17g, %.17g, %.17g) of facet (%d %d %d) "
@@ -488,6 +506,10 @@ static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, doub
  *     circumsphere, so the point conflicts with v's star and changes it.
  * The farthest candidate in M_v wins; crossings within a relative 1e-6 of the segment
  * from v are v itself and are skipped.
+ *  3. when neither gives a point (every segment meets S at v only: v at a corner), S is
+ *     probed around v: projections of points of v's tangent plane, the farthest that
+ *     conflicts with the star and is not an existing site within AS_NEAR_SITE (a
+ *     projection can snap to a site: no theory keeps it away, unlike 1 and 2).
  */
 static anistar_status topology_point(refiner *R, int32_t v, double out[3], double *dist,
                                      int *found) {
@@ -556,6 +578,15 @@ static anistar_status topology_point(refiner *R, int32_t v, double out[3], doubl
             double d = as_metric_dist(mf, q, x);
             if (!(d > 1e-6 * rad) || d <= *dist) continue;
             if (!as_star_conflicts(st, mf, q, ss->n, NULL)) continue;
+            /* a projection can land on an existing site (on a triangle mesh it snaps to
+             * the corner or crease nearest the probe, where earlier points landed too):
+             * a point within rounding of a site is no new point (its conflict is that of
+             * a perturbed copy of a star vertex) */
+            int32_t near;
+            double dn2;
+            if ((s = site_within(ss, q, v, AS_NEAR_SITE * d, &near, &dn2)) != ANISTAR_OK)
+                return s;
+            if (near >= 0) continue;
             *dist = d;
             memcpy(out, q, sizeof q);
             *found = 1;

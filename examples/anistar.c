@@ -516,6 +516,8 @@ static const struct mesh_param {
     {"--seed", "seed", ANISTAR_PARAM_SEED, 1},
     {"--pick-tries", "pick_tries", ANISTAR_PARAM_PICK_TRIES, 1},
     {"--max-stall", "max_stall", ANISTAR_PARAM_MAX_STALL, 1},
+    {"--hmin", "hmin", ANISTAR_PARAM_HMIN, 0},
+    {"--hmax", "hmax", ANISTAR_PARAM_HMAX, 0},
 };
 #define NMESH_PARAMS (sizeof mesh_params / sizeof mesh_params[0])
 #define MAX_OUTPUTS 16
@@ -719,7 +721,7 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     fprintf(f, "  \"insertions\": {\"initial\": %llu, \"rule1\": %llu, \"rule2\": %llu, "
                "\"rule3\": %llu, \"topology\": %llu,\n"
                "    \"rule1_causes\": {\"size\": %llu, \"distortion\": %llu, "
-               "\"approximation\": %llu, \"feature\": %llu}},\n",
+               "\"approximation\": %llu, \"feature\": %llu, \"hmax\": %llu}},\n",
             (unsigned long long)st->insertions_initial,
             (unsigned long long)st->insertions_rule[0],
             (unsigned long long)st->insertions_rule[1],
@@ -728,8 +730,11 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             (unsigned long long)st->insertions_size,
             (unsigned long long)st->insertions_distortion,
             (unsigned long long)st->insertions_approx,
-            (unsigned long long)st->insertions_feature);
+            (unsigned long long)st->insertions_feature,
+            (unsigned long long)st->insertions_hmax);
     fprintf(f, "  \"stall_max\": %llu,\n", (unsigned long long)st->stall_max);
+    fprintf(f, "  \"hmin\": %.17g,\n  \"hmax\": %.17g,\n  \"facets_below_hmin\": %zu,\n",
+            st->hmin, st->hmax, st->facets_below_hmin);
     fprintf(f, "  \"components_found\": %zu,\n  \"components_split\": %zu,\n"
                "  \"components_joined\": %zu,\n",
             st->components_found, st->components_split, st->components_joined);
@@ -977,7 +982,8 @@ static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
-             "                 [--max-stall N] [--seed N] [--pick-tries N] [--optimize]\n"
+             "                 [--max-stall N] [--seed N] [--pick-tries N] [--hmin H]\n"
+             "                 [--hmax H] [--optimize]\n"
              "                 [--quiet] [--sol FILE.sol] [--stats FILE.json]\n"
              "                 -o OUT [-o OUT2 ...]",
      cmd_mesh},
@@ -1003,7 +1009,9 @@ static void help(void) {
            "max-vertices 1000000 (0: the hard limit 2000000; a run whose up-front estimate\n"
            "exceeds it is refused, status 1), max-seconds 0 (no limit), max-stall 0\n"
            "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"
-           "inconsistent-facet count), seed 0, pick-tries 60.\n"
+           "inconsistent-facet count), seed 0, pick-tries 60, hmin 0 (automatic: the\n"
+           "surface's resolution; facets with a shorter longest edge get no size,\n"
+           "distortion or shape refinement), hmax 0 (none; longer facets are refined).\n"
            "Progress goes to stderr (--quiet: none); SIGINT or SIGTERM stops the run after\n"
            "the insertion in progress and writes every output, as a limit does (status 3);\n"
            "a second signal kills.\n\n"

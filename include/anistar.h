@@ -209,13 +209,25 @@ typedef enum anistar_param {
                                    6.2; moves vertices toward the area-weighted mean of
                                    their facets' surface centers while every guarantee
                                    holds and quality improves); 0 or 1 (default 0) */
-    ANISTAR_PARAM_MAX_STALL     /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
+    ANISTAR_PARAM_MAX_STALL,    /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
                                    ANISTAR_STOP_STALL) after this many consistency (rule 3)
                                    insertions in a row without the inconsistent-facet count
                                    they face reaching a new low (rule 3 runs when no other
                                    rule applies: in a converging run that count falls to 0);
                                    integer in [0, 2^53], 0 = automatic (default: the larger
                                    of 50000 and 2 x the vertices at the last new low) */
+    ANISTAR_PARAM_HMIN,         /* Euclidean size floor, as MMG's hmin: a facet whose longest
+                                   edge is shorter gets no size, distortion, approximation
+                                   or shape refinement (the feature size, the topology rule
+                                   and consistency still apply; stats.facets_below_hmin
+                                   counts the facets it held beyond r0, rho0 or gamma0);
+                                   >= 0, 0 = automatic (default): the surface's resolution,
+                                   the floor of the local feature size (an eighth of a
+                                   triangle mesh's mean edge, about a voxel for an image,
+                                   1e-4 of the bounding radius for an implicit surface) */
+    ANISTAR_PARAM_HMAX          /* Euclidean size ceiling, as MMG's hmax: a facet whose
+                                   longest edge is longer is refined (rule 1, counted in
+                                   stats.insertions_hmax); >= 0, 0 = none (default) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */
@@ -386,6 +398,10 @@ typedef struct anistar_mesh_stats {
     size_t edges_below_resolution; /* edges across a gap or a plate (opposite normals at
                                      their ends) whose midpoint is within the resolution
                                      of S: accepted, the gap is not resolved */
+    double hmin, hmax;            /* the Euclidean size bounds in force (hmin: the one given
+                                     or the automatic one; 0: none) */
+    size_t facets_below_hmin;     /* facets shorter than hmin (longest edge) that exceed
+                                     r0, rho0 or gamma0 in a vertex metric: hmin held them */
     double estimate_vertices;     /* the up-front estimate (anistar_progress) */
     double estimate_bytes;
     size_t peak_bytes;            /* the most bytes the run held through the context's
@@ -400,6 +416,7 @@ typedef struct anistar_mesh_stats {
     uint64_t insertions_approx;   /* rule 1: distance to S > approx */
     uint64_t insertions_feature;  /* rule 1: circumradius >= a fraction of the local
                                      feature size (the sizing field's lfs part) */
+    uint64_t insertions_hmax;     /* rule 1: longest edge > hmax */
     uint64_t stall_max;           /* the longest stretch of consistency (rule 3) insertions
                                      without a new low of the inconsistent-facet count */
     double feature_alpha;         /* facets were kept below this fraction of the local

@@ -284,6 +284,14 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
                            value);
         p->max_stall = (int64_t)value;
         return ANISTAR_OK;
+    case ANISTAR_PARAM_HMIN:
+    case ANISTAR_PARAM_HMAX:
+        if (!(isfinite(value) && value >= 0))
+            return as_fail(ctx, ANISTAR_EINVAL, "%s must be a finite number >= 0, got %g",
+                           key == ANISTAR_PARAM_HMIN ? "hmin" : "hmax", value);
+        if (key == ANISTAR_PARAM_HMIN) p->hmin = value;
+        else p->hmax = value;
+        return ANISTAR_OK;
     }
     return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesher_set: unknown parameter %d", (int)key);
 }
@@ -305,6 +313,8 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
     case ANISTAR_PARAM_PICK_TRIES: *value = p->pick_tries; return ANISTAR_OK;
     case ANISTAR_PARAM_OPTIMIZE: *value = p->optimize; return ANISTAR_OK; /* optimize.c */
     case ANISTAR_PARAM_MAX_STALL: *value = (double)p->max_stall; return ANISTAR_OK;
+    case ANISTAR_PARAM_HMIN: *value = p->hmin; return ANISTAR_OK;
+    case ANISTAR_PARAM_HMAX: *value = p->hmax; return ANISTAR_OK;
     }
     return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
 }

@@ -276,8 +276,72 @@ static void test_certify(void **state) {
     run_free(&r);
 }
 
+/* The Euclidean bounds (MMG's hmin/hmax). hmax: no output edge is longer, the insertions
+ * it caused are counted, the estimate follows it. hmin: a facet whose refinement point lies
+ * within hmin of one of its vertices is left as it is; the run is still certified (closed,
+ * the sphere's topology), with fewer vertices, and the facets hmin held beyond r0, rho0 or
+ * gamma0 are counted; the automatic hmin is the surface's resolution, which these runs
+ * never reach. */
+static void test_size_bounds(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 2;
+    p.hmax = 0.3;
+    run r;
+    run_keep(&r, "sphere", "euclidean", &p);
+    assert_int_equal(r.st, ANISTAR_OK);
+    const anistar_mesh_stats *S = &r.mesh->stats;
+    assert_true(S->complete && S->closed_manifold && S->euler_characteristic == 2);
+    assert_true(S->hmax == 0.3);
+    assert_true(S->insertions_hmax > 0);
+    double lmax = 0;
+    const as_trimesh *tm = &r.mesh->tm;
+    for (size_t t = 0; t < tm->nt; t++)
+        for (int k = 0; k < 3; k++) {
+            const double *a = tm->xyz + 3 * (size_t)tm->tri[3 * t + k],
+                         *b = tm->xyz + 3 * (size_t)tm->tri[3 * t + (k + 1) % 3];
+            double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                            (a[2] - b[2]) * (a[2] - b[2]));
+            if (l > lmax) lmax = l;
+        }
+    print_message("hmax 0.3: %zu V, longest edge %.4f, estimate %.0f\n", S->vertices, lmax,
+                  S->estimate_vertices);
+    assert_true(lmax <= 0.3);
+    assert_true(fabs(S->estimate_vertices - (double)S->vertices) < 0.35 * (double)S->vertices);
+    run_free(&r);
+
+    size_t v_auto = 0;
+    for (int k = 0; k < 2; k++) {
+        as_mesher_params_default(&p);
+        p.r0 = 0.3;
+        p.gamma0 = 1.6;
+        p.hmin = k ? 0.08 : 0;
+        run_keep(&r, "sphere", "shock", &p);
+        assert_int_equal(r.st, ANISTAR_OK);
+        S = &r.mesh->stats;
+        assert_true(S->complete && S->closed_manifold && S->euler_characteristic == 2);
+        assert_int_equal(S->inconsistent_facets, 0);
+        print_message("shock, hmin %g: %zu V, %zu facets held by hmin, gamma_max %.3f\n",
+                      S->hmin, S->vertices, S->facets_below_hmin, S->gamma_max);
+        if (!k) {
+            assert_true(S->hmin == r.ss->feat.floor_e); /* automatic: the resolution */
+            assert_int_equal(S->facets_below_hmin, 0);
+            assert_true(S->gamma_max < p.gamma0);
+            v_auto = S->vertices;
+        } else {
+            assert_true(S->hmin == 0.08);
+            assert_true(S->facets_below_hmin > 0);
+            assert_true(S->gamma_max >= p.gamma0); /* what hmin held, counted above */
+            assert_true(S->vertices < v_auto);
+        }
+        run_free(&r);
+    }
+}
+
 /* The refusal: an estimate above max_vertices refuses the run at once, with the estimate
- * in the message; r0 = 1e-6 on the paper's torus (about 10^13 vertices) too. */
+ * in the message; r0 = 1e-6 on the paper's torus too (10^13 vertices by r0 alone; the
+ * automatic hmin, 1e-4 of the bounding radius, caps the density: about 6 10^8). */
 static void test_refusal(void **state) {
     (void)state;
     as_mesher_params p;
@@ -298,7 +362,7 @@ static void test_refusal(void **state) {
     const char *msg = anistar_last_error(r.ctx);
     const char *at = strstr(msg, "about ");
     assert_non_null(at);
-    assert_true(strtod(at + 6, NULL) > 1e12);
+    assert_true(strtod(at + 6, NULL) > 1e8);
     run_free(&r);
 }
 
@@ -359,6 +423,7 @@ int main(void) {
         cmocka_unit_test(test_certify),
         cmocka_unit_test(test_feature_halving),
         cmocka_unit_test(test_refusal),
+        cmocka_unit_test(test_size_bounds),
         cmocka_unit_test(test_estimate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

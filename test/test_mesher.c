@@ -289,7 +289,9 @@ static void test_bad_parameters(void **state) {
                {ANISTAR_PARAM_DELTA, 1, "delta"},     {ANISTAR_PARAM_BETA, 0.5, "beta"},
                {ANISTAR_PARAM_APPROX, -1, "approx"},  {ANISTAR_PARAM_MAX_VERTICES, 1.5, "max_vertices"},
                {ANISTAR_PARAM_PICK_TRIES, 0, "pick_tries"}, {ANISTAR_PARAM_SEED, -1, "seed"},
-               {ANISTAR_PARAM_MAX_SECONDS, -2, "max_seconds"}, {(anistar_param)99, 1, "unknown"}};
+               {ANISTAR_PARAM_MAX_SECONDS, -2, "max_seconds"}, {ANISTAR_PARAM_HMIN, -1, "hmin"},
+               {ANISTAR_PARAM_HMIN, NAN, "hmin"},     {ANISTAR_PARAM_HMAX, INFINITY, "hmax"},
+               {(anistar_param)99, 1, "unknown"}};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         double before = 0, after = 0;
         anistar_mesher_get(me, bad[i].k, &before);
@@ -306,6 +308,11 @@ static void test_bad_parameters(void **state) {
     assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_DELTA, 0.5), ANISTAR_OK);
     assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_DELTA, &v), ANISTAR_OK);
     assert_true(v == 0.5);
+    assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_HMIN, &v), ANISTAR_OK);
+    assert_true(v == 0); /* automatic */
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_HMAX, 0.25), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_HMAX, &v), ANISTAR_OK);
+    assert_true(v == 0.25);
     anistar_mesher_free(me);
     anistar_metric_free(m);
     anistar_surface_free(s);

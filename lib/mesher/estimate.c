@@ -159,7 +159,14 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
                                 &exact)) != ANISTAR_OK)
             break;
         if (ss->alpha * lfs < h) h = ss->alpha * lfs;
-        sum += w * dens / (ideal * h * h);
+        double d = dens / (ideal * h * h);
+        /* the Euclidean bounds: edges of at least hmin and at most hmax (an equilateral
+         * triangle of side L has circumradius L / sqrt 3) */
+        if (ss->hmin > 0 && d > 3 / (ideal * ss->hmin * ss->hmin))
+            d = 3 / (ideal * ss->hmin * ss->hmin);
+        if (ss->hmax > 0 && d < 3 / (ideal * ss->hmax * ss->hmax))
+            d = 3 / (ideal * ss->hmax * ss->hmax);
+        sum += w * d;
     }
     as_free(ctx, count, (smp.ncomponents ? smp.ncomponents : 1) * sizeof *count);
     as_surface_sample_free(ctx, &smp);

@@ -24,6 +24,11 @@ typedef struct as_mesher_params {
     int32_t initial_points; /* initial sites wanted (0: automatic) */
     int32_t optimize;       /* 1: vertex optimisation after a complete run (optimize.c) */
     double alpha0;          /* tests: the first feature-size fraction (0: AS_FEATURE_ALPHA) */
+    double hmin;            /* Euclidean size floor: facets whose longest edge is shorter get
+                               no size, distortion, approximation or shape refinement;
+                               0: automatic, the surface's resolution (as_feature floor_e) */
+    double hmax;            /* Euclidean size ceiling: facets whose longest edge is longer are
+                               refined (rule 1); 0: none */
 } as_mesher_params;
 
 void as_mesher_params_default(as_mesher_params *p);
@@ -50,7 +55,14 @@ typedef struct as_run_ctl {
 } as_run_ctl;
 
 /* Counters of one run. rule[0] is the sum of the rule-1 causes cause[AS_CAUSE_*]. */
-enum { AS_CAUSE_SIZE = 0, AS_CAUSE_DISTORTION, AS_CAUSE_APPROX, AS_CAUSE_FEATURE, AS_NCAUSES };
+enum {
+    AS_CAUSE_SIZE = 0,
+    AS_CAUSE_DISTORTION,
+    AS_CAUSE_APPROX,
+    AS_CAUSE_FEATURE,
+    AS_CAUSE_HMAX,
+    AS_NCAUSES
+};
 typedef struct as_mesher_counters {
     uint64_t initial, rule[3], topology, cause[AS_NCAUSES];
     uint64_t pick_tries, pick_failures;

@@ -321,6 +321,7 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
     T->insertions_distortion = S->insertions_distortion;
     T->insertions_approx = S->insertions_approx;
     T->insertions_feature = S->insertions_feature;
+    T->insertions_hmax = S->insertions_hmax;
     T->stall_max = S->stall_max;
     T->components_below_resolution = S->components_below_resolution;
     T->estimate_vertices = S->estimate_vertices;

@@ -3,6 +3,7 @@
  * (DESIGN.md 4.8, paper 4.1 "stitched together", 6.2 Figures 8 and 10). See mesher.h.
  */
 #include "mesher/mesher.h"
+#include "mesher/refine.h"
 
 #include <math.h>
 #include <string.h>
@@ -100,7 +101,9 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
             if ((s = as_trimesh_add_triangle(ctx, &m->tm, i0, flip ? i2 : i1, flip ? i1 : i2)) !=
                 ANISTAR_OK)
                 goto fail;
-            /* statistics in the three vertex metrics */
+            /* statistics in the three vertex metrics; a facet below hmin that exceeds
+             * r0, rho0 or gamma0 is counted (the bound that held it) */
+            int beyond = 0;
             for (int j = 0; j < 3; j++) {
                 int32_t w3 = f->g[j];
                 const as_metric_frame *mf = &ss->mf[w3];
@@ -113,6 +116,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                 const as_star *sw = ss->stars[w3];
                 int32_t idx = as_star_find(sw, f->g);
                 if (idx >= 0 && sw->rf[idx].r > S->r_max) S->r_max = sw->rf[idx].r;
+                if (rho > prm->rho0 || (idx >= 0 && sw->rf[idx].r >= prm->r0)) beyond = 1;
             }
             /* approximation error: 4 fixed barycentric samples projected on S, weighted by
              * the triangle's area (the mean over area-uniform samples) */
@@ -147,8 +151,12 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
             double g = g01 > g02 ? g01 : g02;
             if (g12 > g) g = g12;
             if (g > S->gamma_max) S->gamma_max = g;
+            if (g >= prm->gamma0) beyond = 1;
+            if (beyond && as_facet_below_hmin(ss, f)) S->facets_below_hmin++;
         }
     }
+    S->hmin = ss->hmin;
+    S->hmax = ss->hmax;
     S->vertices = m->tm.nv;
     S->facets = m->tm.nt;
     S->rho2_mean = m->tm.nt ? rho2_sum / (3.0 * (double)m->tm.nt) : 0;
@@ -171,6 +179,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_distortion = cnt->cause[AS_CAUSE_DISTORTION];
     S->insertions_approx = cnt->cause[AS_CAUSE_APPROX];
     S->insertions_feature = cnt->cause[AS_CAUSE_FEATURE];
+    S->insertions_hmax = cnt->cause[AS_CAUSE_HMAX];
     S->stall_max = cnt->stall_max;
     S->components_below_resolution = cnt->specks;
     S->estimate_vertices = cnt->estimate_vertices;

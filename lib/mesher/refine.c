@@ -77,13 +77,54 @@ void as_queue_free(anistar_context *ctx, as_queue *q) {
 
 /* ---- rule tests --------------------------------------------------------------------- */
 
+double as_facet_longest_edge(const as_starset *ss, const int32_t g[3]) {
+    const double *a = ss->xyz + 3 * (size_t)g[0], *b = ss->xyz + 3 * (size_t)g[1],
+                 *c = ss->xyz + 3 * (size_t)g[2];
+    double l = 0;
+    const double *e[3][2] = {{a, b}, {b, c}, {c, a}};
+    for (int i = 0; i < 3; i++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (e[i][1][k] - e[i][0][k]) * (e[i][1][k] - e[i][0][k]);
+        if (d2 > l) l = d2;
+    }
+    return sqrt(l);
+}
+
+int as_facet_below_hmin(const as_starset *ss, const as_rfacet *f) {
+    if (!(ss->hmin > 0)) return 0;
+    const double h2 = ss->hmin * ss->hmin;
+    for (int i = 0; i < 3; i++) {
+        const double *q = ss->xyz + 3 * (size_t)f->g[i];
+        double d2 = 0;
+        for (int k = 0; k < 3; k++) d2 += (f->c[k] - q[k]) * (f->c[k] - q[k]);
+        if (d2 < h2) return 1;
+    }
+    return 0;
+}
+
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f, int *cause, anistar_status *err) {
     double viol = 0;
     int why = AS_CAUSE_SIZE;
     *err = ANISTAR_OK;
-    if (f->r >= prm->r0) viol = f->r / prm->r0;
-    if (f->g[0] >= ss->first_site) {
+    /* design: the Euclidean bounds (MMG's hmin/hmax, edge lengths): a facet whose longest
+     * edge exceeds hmax is refined; a facet whose refinement point (its surface center)
+     * lies within hmin of one of its vertices would make an edge shorter than hmin: it
+     * gets no size, distortion, approximation or shape refinement (the feature size, the
+     * topology rule and consistency still apply) */
+    if (ss->hmax > 0) {
+        double len = as_facet_longest_edge(ss, f->g);
+        if (len > ss->hmax) {
+            viol = len / ss->hmax;
+            why = AS_CAUSE_HMAX;
+        }
+    }
+    const int small = as_facet_below_hmin(ss, f);
+    if (!small && f->r >= prm->r0 && f->r / prm->r0 > viol) {
+        viol = f->r / prm->r0;
+        why = AS_CAUSE_SIZE;
+    }
+    if (!small && f->g[0] >= ss->first_site) {
         /* design: gamma(tau) approximated by the largest pairwise distortion of the
          * vertices' metrics (paper 5.1); the trace filter settles most pairs. */
         const as_metric_frame *m0 = &ss->mf[f->g[0]], *m1 = &ss->mf[f->g[1]],
@@ -101,7 +142,7 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
             }
         }
     }
-    if (prm->approx > 0) {
+    if (!small && prm->approx > 0) {
         const double *a = ss->xyz + 3 * (size_t)f->g[0], *b = ss->xyz + 3 * (size_t)f->g[1],
                      *c = ss->xyz + 3 * (size_t)f->g[2];
         double m[3], q[3];
@@ -141,6 +182,7 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
 
 double as_rule2_violation(const as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f) {
+    if (as_facet_below_hmin(ss, f)) return 0;
     double rho = as_radius_edge(&ss->mf[v], ss->xyz + 3 * (size_t)f->g[0],
                                 ss->xyz + 3 * (size_t)f->g[1], ss->xyz + 3 * (size_t)f->g[2], NULL);
     return rho > prm->rho0 ? rho / prm->rho0 : 0;
@@ -909,6 +951,13 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     if (maxv > AS_STARSET_MAX_IDS - 1024) maxv = AS_STARSET_MAX_IDS - 1024;
     anistar_status s = as_starset_init(ss, ctx, surf, field);
     if (prm->alpha0 > 0) ss->alpha = prm->alpha0;
+    /* design: the automatic hmin is the surface's own resolution, the floor of the local
+     * feature size: what keeps distortion refinement finite where a metric from data
+     * jumps (the curvature of a triangle mesh across a crease) */
+    if (s == ANISTAR_OK) {
+        ss->hmin = prm->hmin > 0 ? prm->hmin : ss->feat.floor_e;
+        ss->hmax = prm->hmax > 0 ? prm->hmax : 0;
+    }
     int complete = 0;
     anistar_mesh *done = NULL; /* the output built when no rule applied */
     int fixes = 0;             /* passes that inserted the points the final checks found */

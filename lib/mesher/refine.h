@@ -30,12 +30,20 @@ void as_queue_free(anistar_context *ctx, as_queue *q);
  * Rule-1 violation of facet f of star v: the largest of r/r0, gamma/gamma0 (largest
  * pairwise distortion of the vertices' metrics, when all three are sites), with
  * approx > 0 dist/approx (distance from the facet's centroid to S), and
- * r/(ss->alpha lfs_v) (v's local feature size in M_v, as_starset_lfs), among
- * those >= 1; 0 when the facet satisfies rule 1. *cause (optional) receives the
+ * r/(ss->alpha lfs_v) (v's local feature size in M_v, as_starset_lfs), and with
+ * ss->hmax > 0 L/hmax (L the longest Euclidean edge), among those >= 1; 0 when the facet
+ * satisfies rule 1. A facet below ss->hmin (as_facet_below_hmin) is held to the feature
+ * size and hmax only. *cause (optional) receives the
  * AS_CAUSE_* of the largest ratio; *err surface errors (then 0 is returned).
  */
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f, int *cause, anistar_status *err);
+/* The longest Euclidean edge of the facet with global ids g (ss->hmax refines above it). */
+double as_facet_longest_edge(const as_starset *ss, const int32_t g[3]);
+/* 1 if ss->hmin > 0 and f's surface center lies within hmin (Euclidean) of one of f's
+ * vertices: refining f would make an edge shorter than hmin, so no size, distortion,
+ * approximation or shape rule applies to it. */
+int as_facet_below_hmin(const as_starset *ss, const as_rfacet *f);
 /* A refinement point closer than AS_NEAR_SITE times its facet's radius (in the star's
  * metric) to an existing site is a bug trap (as_refine_check_point). */
 #define AS_NEAR_SITE 1e-9
@@ -63,7 +71,8 @@ anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t 
 anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
                                   double *bytes);
 
-/* Rule-2 violation: rho/rho0 if the radius-edge ratio in M_v exceeds rho0, else 0. */
+/* Rule-2 violation: rho/rho0 if the radius-edge ratio in M_v exceeds rho0, else 0 (0 for a
+ * facet below ss->hmin, as_facet_below_hmin). */
 double as_rule2_violation(const as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f);
 

@@ -67,6 +67,8 @@ typedef struct as_starset {
     double *lfs;             /* per id: lfs in its own metric (NaN: not computed yet) */
     int32_t *scomp;          /* per id: the sample component of an initial site, or -1 */
     int32_t nscomp;          /* components of the surface sample */
+    double hmin, hmax;       /* the run's Euclidean size bounds in force (0: none; see
+                                as_mesher_params) */
     double alpha;            /* the feature-size fraction (AS_FEATURE_ALPHA), times each
                                 site's ascale */
     double *fix;             /* points of S the final checks found the mesh missing (4 per

@@ -1033,7 +1033,9 @@ static void help(void) {
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"
            "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol[,rb=R] (meshes)\n"
-           "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R (blending)\n\n"
+           "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R (blending),\n"
+           "  grad=G (gradation, G > 1: sizes grow by at most 1 + l ln G over metric length l;\n"
+           "  sol takes grad=G too)\n\n"
            "built-in surfaces:\n");
     const char *name, *desc;
     for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)

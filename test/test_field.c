@@ -712,6 +712,96 @@ static void test_mesher_refuses(void **state) {
 
 /* ---- SPEC parsing --------------------------------------------------------------------------- */
 
+/* The smallest eigenvalue of P^-1/2 M P^-1/2: M >= t P iff it is >= t. */
+static double min_rel_eig(const double P[6], const double M[6]) {
+    double w[3], v[9], s6[6];
+    assert_int_equal(as_sym3_eigen(P, w, v), 0);
+    for (int k = 0; k < 3; k++) w[k] = 1 / sqrt(w[k]);
+    as_sym3_from_eigen(w, v, s6);
+    const double S[9] = {s6[0], s6[1], s6[2], s6[1], s6[3], s6[4], s6[2], s6[4], s6[5]};
+    const double A[9] = {M[0], M[1], M[2], M[1], M[3], M[4], M[2], M[4], M[5]};
+    double T[9], C[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            T[3 * i + j] = 0;
+            for (int k = 0; k < 3; k++) T[3 * i + j] += A[3 * i + k] * S[3 * k + j];
+        }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            C[3 * i + j] = 0;
+            for (int k = 0; k < 3; k++) C[3 * i + j] += S[3 * i + k] * T[3 * k + j];
+        }
+    double c6[6] = {C[0], 0.5 * (C[1] + C[3]), 0.5 * (C[2] + C[6]), C[4], 0.5 * (C[5] + C[7]),
+                    C[8]};
+    assert_int_equal(as_sym3_eigen(c6, w, v), 0);
+    return fmin(w[0], fmin(w[1], w[2]));
+}
+
+/* The gradation (grad=G) on a real mesh (the fandisk's vertices and triangles) with random
+ * anisotropic vertex tensors (eigenvalues 1 to 10^6, random frames: jumps everywhere):
+ * afterwards every directed edge i -> j satisfies M_j >= eta^2 M_i, eta = 1 / (1 + l ln G)
+ * with l the M_i length of the edge (to the documented relative 1e-3), every tensor is at
+ * least its input, something changed, and a second pass changes nothing. */
+static void test_gradation(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    assert_int_equal(as_mesh_surface_read(ctx, AS_TEST_DATA_DIR "/fandisk.off", &s), ANISTAR_OK);
+    as_mesh_info mi;
+    as_mesh_surface_info(s, &mi);
+    double *t0 = malloc(mi.nv * 6 * sizeof(double)), *t = malloc(mi.nv * 6 * sizeof(double));
+    assert_non_null(t0);
+    assert_non_null(t);
+    tu_rng r = {7};
+    for (size_t v = 0; v < mi.nv; v++) {
+        double q[9], e[3];
+        tu_random_rotation(&r, q);
+        for (int k = 0; k < 3; k++) e[k] = pow(10, tu_rng_range(&r, 0, 3));
+        as_field_tensor(q, e, t0 + 6 * v);
+    }
+    memcpy(t, t0, mi.nv * 6 * sizeof(double));
+    const double G = 1.3;
+    assert_int_equal(as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, G), ANISTAR_OK);
+    size_t changed = 0;
+    double worst = INFINITY, least = INFINITY;
+    for (size_t v = 0; v < mi.nv; v++) {
+        double g = min_rel_eig(t0 + 6 * v, t + 6 * v);
+        if (g < least) least = g;
+        if (memcmp(t0 + 6 * v, t + 6 * v, 6 * sizeof(double))) changed++;
+    }
+    for (size_t f = 0; f < mi.nt; f++)
+        for (int k = 0; k < 3; k++)
+            for (int dir = 0; dir < 2; dir++) {
+                int32_t i = mi.tri[3 * f + k], j = mi.tri[3 * f + (k + 1) % 3];
+                if (dir) {
+                    int32_t x = i;
+                    i = j;
+                    j = x;
+                }
+                const double *M = t + 6 * (size_t)i, *a = mi.xyz + 3 * (size_t)i,
+                             *b = mi.xyz + 3 * (size_t)j;
+                double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                double l2 = M[0] * d[0] * d[0] + M[3] * d[1] * d[1] + M[5] * d[2] * d[2] +
+                            2 * (M[1] * d[0] * d[1] + M[2] * d[0] * d[2] + M[4] * d[1] * d[2]);
+                double eta = 1 / (1 + sqrt(l2) * log(G)), P[6];
+                for (int q = 0; q < 6; q++) P[q] = eta * eta * M[q];
+                double g = min_rel_eig(P, t + 6 * (size_t)j);
+                if (g < worst) worst = g;
+            }
+    print_message("gradation 1.3 on fandisk: %zu of %zu tensors changed, edge bound %.6f, "
+                  "growth %.6f\n", changed, mi.nv, worst, least);
+    assert_true(changed > mi.nv / 2);
+    assert_true(worst >= 1 - 2e-3);
+    assert_true(least >= 1 - 1e-9);
+    memcpy(t0, t, mi.nv * 6 * sizeof(double));
+    assert_int_equal(as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, G), ANISTAR_OK);
+    assert_memory_equal(t0, t, mi.nv * 6 * sizeof(double));
+    free(t0);
+    free(t);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 static void test_spec_errors(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
@@ -737,6 +827,9 @@ static void test_spec_errors(void **state) {
         {"uniform,h=0", ANISTAR_EINVAL, "h must be > 0"},
         {"shock,lambda=-1", ANISTAR_EINVAL, "lambda must be > 0"},
         {"shock,phi=-1", ANISTAR_EINVAL, "phi must be >= 0"},
+        {"curvature,grad=1", ANISTAR_EINVAL, "grad must be > 1"},
+        {"sol:f.sol,grad=0.5", ANISTAR_EINVAL, "grad must be > 1, got 0.5"},
+        {"shock,grad=1.3", ANISTAR_EINVAL, "unknown option 'grad'"},
         {"gradient", ANISTAR_EINVAL, "needs an argument"},
         {"gradient:", ANISTAR_EINVAL, "needs an argument"},
         {"hessian: ,eps=1", ANISTAR_EINVAL, "needs an argument"},
@@ -773,6 +866,9 @@ static void test_spec_errors(void **state) {
     assert_int_equal(as_field_from_spec(ctx, s, "sol:file.sol", &f), ANISTAR_EINVAL);
     assert_null(f);
     assert_non_null(strstr(anistar_last_error(ctx), "not supported yet for implicit surfaces"));
+    /* the gradation is for triangle meshes (their vertex tensors) */
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature,grad=1.3", &f), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "triangle-mesh surfaces only"));
     /* uniform */
     f = field(ctx, s, "uniform,h=0.5");
     double m[6];
@@ -878,6 +974,7 @@ int main(void) {
         cmocka_unit_test(test_shock),            cmocka_unit_test(test_hessian),
         cmocka_unit_test(test_all_kinds_spd),    cmocka_unit_test(test_anisotropy_clamp),
         cmocka_unit_test(test_singular_points),  cmocka_unit_test(test_custom_errors),
+        cmocka_unit_test(test_gradation),
         cmocka_unit_test(test_spec_errors),      cmocka_unit_test(test_public_api),
         cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_hessian_zero),
         cmocka_unit_test(test_builtin_overflow), cmocka_unit_test(test_sol_errors),

@@ -339,6 +339,39 @@ static void test_size_bounds(void **state) {
     }
 }
 
+/* A metric from data with jumps: the fandisk's jet-fitted curvature across its CAD creases.
+ * Graded (grad=1.3) it is certified: closed, consistent, the input's Euler characteristic,
+ * every facet within r0, rho0 and gamma0 (checked independently), every vertex on S, in
+ * 4,589 vertices. (Ungraded, the same run does not converge: after 60 s it has 64,000
+ * vertices, 53,101 distortion insertions and 58,318 inconsistent facets.) */
+static void test_graded_crease_metric(void **state) {
+    (void)state;
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 2;
+    p.gamma0 = 2;
+    run r;
+    run_keep(&r, AS_TEST_DATA_DIR "/fandisk.off", "curvature,grad=1.3", &p);
+    if (r.st != ANISTAR_OK) fail_msg("fandisk graded: %s", anistar_last_error(r.ctx));
+    const anistar_mesh_stats *S = &r.mesh->stats;
+    print_message("fandisk, curvature grad 1.3: %zu V, rule 1 size %llu, distortion %llu, "
+                  "feature %llu, %zu facets held by hmin\n",
+                  S->vertices, (unsigned long long)S->insertions_size,
+                  (unsigned long long)S->insertions_distortion,
+                  (unsigned long long)S->insertions_feature, S->facets_below_hmin);
+    assert_true(S->complete && S->closed_manifold);
+    assert_int_equal(S->inconsistent_facets, 0);
+    assert_int_equal(S->facets_below_hmin, 0);
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * r.s->radius};
+    mc_report rep;
+    mc_report_init(&rep);
+    mc_check_topology(r.ctx, &r.mesh->tm, &lim, &rep);
+    mc_check_shape(&r.mesh->tm, &lim, &rep);
+    mc_check_on_surface(r.ctx, r.s, &r.mesh->tm, &lim, &rep);
+    mc_assert_ok(&rep, "fandisk graded");
+    run_free(&r);
+}
+
 /* The refusal: an estimate above max_vertices refuses the run at once, with the estimate
  * in the message; r0 = 1e-6 on the paper's torus too (10^13 vertices by r0 alone; the
  * automatic hmin, 1e-4 of the bounding radius, caps the density: about 6 10^8). */
@@ -424,6 +457,7 @@ int main(void) {
         cmocka_unit_test(test_feature_halving),
         cmocka_unit_test(test_refusal),
         cmocka_unit_test(test_size_bounds),
+        cmocka_unit_test(test_graded_crease_metric),
         cmocka_unit_test(test_estimate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -125,7 +125,8 @@ enum {
     OPT_H = 32,
     OPT_DEGREE = 64, /* triangle meshes */
     OPT_K = 128,
-    OPT_RB = 256
+    OPT_RB = 256,
+    OPT_GRAD = 512
 };
 
 typedef struct fl_name {
@@ -140,12 +141,13 @@ typedef struct fl_name {
 static const fl_name fl_names[] = {
     {"euclidean", AS_FIELD_UNIFORM, 0, 0, "none", ""},
     {"uniform", AS_FIELD_UNIFORM, 0, OPT_H, "h", ""},
-    {"curvature", AS_FIELD_CURVATURE, 0, OPT_EPS | OPT_EN | OPT_POWER | OPT_DEGREE | OPT_K | OPT_RB,
-     "eps, en, power", "degree, k, rb"},
+    {"curvature", AS_FIELD_CURVATURE, 0,
+     OPT_EPS | OPT_EN | OPT_POWER | OPT_DEGREE | OPT_K | OPT_RB | OPT_GRAD, "eps, en, power",
+     "degree, k, rb, grad"},
     {"shock", AS_FIELD_GRADIENT, 0, OPT_LAMBDA | OPT_PHI | OPT_EN, "lambda, phi, en", ""},
     {"gradient", AS_FIELD_GRADIENT, 1, OPT_PHI | OPT_EN, "phi, en", ""},
     {"hessian", AS_FIELD_HESSIAN, 1, OPT_EPS | OPT_EN | OPT_POWER, "eps, en, power", ""},
-    {"sol", AS_FIELD_SOL, 1, OPT_RB, "rb", ""},
+    {"sol", AS_FIELD_SOL, 1, OPT_RB | OPT_GRAD, "rb, grad", ""},
 };
 #define FL_NAMES (sizeof fl_names / sizeof fl_names[0])
 
@@ -194,7 +196,8 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
         int bit;
     } keys[] = {{"eps", OPT_EPS},       {"en", OPT_EN},         {"power", OPT_POWER},
                 {"phi", OPT_PHI},       {"lambda", OPT_LAMBDA}, {"h", OPT_H},
-                {"degree", OPT_DEGREE}, {"k", OPT_K},           {"rb", OPT_RB}};
+                {"degree", OPT_DEGREE}, {"k", OPT_K},           {"rb", OPT_RB},
+                {"grad", OPT_GRAD}};
     int bit = 0;
     for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
         if (strlen(keys[i].key) == (size_t)(ke - kb) && !strncmp(keys[i].key, kb, (size_t)(ke - kb)))
@@ -230,6 +233,7 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     case OPT_DEGREE: dst = &sp->degree; has = &sp->has_degree; break;
     case OPT_K: dst = &sp->k; has = &sp->has_k; break;
     case OPT_RB: dst = &sp->rb; has = &sp->has_rb; break;
+    case OPT_GRAD: dst = &sp->grad; has = &sp->has_grad; break;
     default: dst = &sp->h; has = &sp->has_h; break;
     }
     if (*has)
@@ -238,6 +242,9 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     if (positive ? !(v > 0) : !(v >= 0))
         return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s must be %s, got %g",
                        nm->name, clip_len((size_t)(ke - kb)), kb, positive ? "> 0" : ">= 0", v);
+    if (bit == OPT_GRAD && !(v > 1))
+        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option grad must be > 1, got %g",
+                       nm->name, v);
     if (bit == OPT_DEGREE && !(v == 2 || v == 3 || v == 4))
         return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option degree must be 2, 3 or 4, got %g",
                        nm->name, v);
@@ -676,6 +683,99 @@ static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, const char
  *   2. r_B = option rb or the mean distance to the k nearest vertices (paper's default);
  *   3. as_blend_create over the surface's kd-tree of vertices.
  */
+/* out = the intersection of the metrics a and b: the largest tensor whose unit ball lies in
+ * both unit balls (simultaneous reduction: with F = a^(1/2), C = F^-1 b F^-1 = V diag(w)
+ * V^T, out = F V diag(max(w, 1)) V^T F). Returns 1 if out differs from b by more than a
+ * relative 1e-3 in some eigenvalue, 0 if not, -1 if a is not a valid metric. */
+static int fl_intersect(const double a[6], const double b[6], double out[6]) {
+    as_metric_frame fa;
+    if (as_metric_frame_init(&fa, a)) return -1;
+    const double B[9] = {b[0], b[1], b[2], b[1], b[3], b[4], b[2], b[4], b[5]};
+    double T[9], C[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            T[3 * i + j] = (B[3 * i] * fa.finv[j] + B[3 * i + 1] * fa.finv[3 + j]) +
+                           B[3 * i + 2] * fa.finv[6 + j];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            C[3 * i + j] = (fa.finv[3 * i] * T[j] + fa.finv[3 * i + 1] * T[3 + j]) +
+                           fa.finv[3 * i + 2] * T[6 + j];
+    double c6[6] = {C[0], 0.5 * (C[1] + C[3]), 0.5 * (C[2] + C[6]), C[4], 0.5 * (C[5] + C[7]),
+                    C[8]};
+    double w[3], v[9];
+    if (as_sym3_eigen(c6, w, v)) return -1;
+    int changed = 0;
+    for (int k = 0; k < 3; k++)
+        if (w[k] < 1) {
+            if (w[k] < 1 - 1e-3) changed = 1;
+            w[k] = 1;
+        }
+    if (!changed) {
+        memcpy(out, b, 6 * sizeof(double));
+        return 0;
+    }
+    double r6[6], R[9], Q[9];
+    as_sym3_from_eigen(w, v, r6);
+    const double Rr[9] = {r6[0], r6[1], r6[2], r6[1], r6[3], r6[4], r6[2], r6[4], r6[5]};
+    memcpy(R, Rr, sizeof R);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            Q[3 * i + j] = (R[3 * i] * fa.f[j] + R[3 * i + 1] * fa.f[3 + j]) + R[3 * i + 2] * fa.f[6 + j];
+    double O[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            O[3 * i + j] = (fa.f[3 * i] * Q[j] + fa.f[3 * i + 1] * Q[3 + j]) + fa.f[3 * i + 2] * Q[6 + j];
+    out[0] = O[0];
+    out[1] = 0.5 * (O[1] + O[3]);
+    out[2] = 0.5 * (O[2] + O[6]);
+    out[3] = O[4];
+    out[4] = 0.5 * (O[5] + O[7]);
+    out[5] = O[8];
+    return 1;
+}
+
+/* as_field_gradation (field.h). design: passes over the triangles' edges in a fixed order,
+ * each directed edge i -> j intersecting eta^2 M_i into M_j; a tensor changes only when an
+ * eigenvalue of the intersection exceeds its own by a relative 1e-3, so the passes end. */
+anistar_status as_field_gradation(anistar_context *ctx, double *tens, const double *xyz,
+                                  size_t nt, const int32_t *tri, double grad) {
+    const double lb = log(grad);
+    for (int pass = 0; pass < AS_FIELD_GRAD_PASSES; pass++) {
+        int any = 0;
+        for (size_t t = 0; t < nt; t++)
+            for (int k = 0; k < 3; k++)
+                for (int dir = 0; dir < 2; dir++) {
+                    int32_t i = tri[3 * t + k], j = tri[3 * t + (k + 1) % 3];
+                    if (dir) {
+                        int32_t x = i;
+                        i = j;
+                        j = x;
+                    }
+                    const double *mi = tens + 6 * (size_t)i, *xi = xyz + 3 * (size_t)i,
+                                 *xj = xyz + 3 * (size_t)j;
+                    double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+                    double l2 = mi[0] * d[0] * d[0] + mi[3] * d[1] * d[1] + mi[5] * d[2] * d[2] +
+                                2 * (mi[1] * d[0] * d[1] + mi[2] * d[0] * d[2] + mi[4] * d[1] * d[2]);
+                    double eta = 1 / (1 + sqrt(fmax(l2, 0)) * lb), p[6], o[6];
+                    for (int q = 0; q < 6; q++) p[q] = eta * eta * mi[q];
+                    int c = fl_intersect(p, tens + 6 * (size_t)j, o);
+                    if (c < 0)
+                        return fail_tensor_at(ctx, "the graded tensor is not a metric", p, xi,
+                                              "");
+                    if (c) {
+                        if (as_field_check_tensor(o))
+                            return fail_tensor_at(ctx, "the graded tensor is not a metric", o, xj,
+                                                  "");
+                        memcpy(tens + 6 * (size_t)j, o, sizeof o);
+                        any = 1;
+                    }
+                }
+        if (!any) return ANISTAR_OK;
+    }
+    (void)ctx;
+    return ANISTAR_OK;
+}
+
 static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
                                     const as_field_spec *sp, as_field *fl) {
     as_mesh_info mi;
@@ -771,6 +871,11 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
             if (v >= 0) memcpy(tens + 6 * (size_t)v, t, sizeof t);
         }
     }
+    /* design: grad=G bounds the growth of the vertex metrics along the mesh (gradation)
+     * before they are blended: a field from data (jets across a crease, a .sol) may jump,
+     * and the distortion rule cannot refine a jump away (docs/algorithm.md) */
+    if (sp->has_grad && (st = as_field_gradation(ctx, tens, mi.xyz, mi.nt, mi.tri, sp->grad)))
+        goto done;
     double rb = sp->has_rb ? sp->rb : 0;
     if (!sp->has_rb) st = as_blend_default_radius(ctx, mi.kd, mi.xyz, nv, k, &rb);
     if (!st) st = as_blend_create(ctx, mi.kd, mi.xyz, nv, tens, rb, &fl->blend);
@@ -796,10 +901,10 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
         as_field_spec_clear(ctx, &sp);
         return st;
     }
-    if (!mesh && (sp.has_degree || sp.has_k || sp.has_rb)) {
+    if (!mesh && (sp.has_degree || sp.has_k || sp.has_rb || sp.has_grad)) {
         st = as_fail(ctx, ANISTAR_EINVAL,
-                     "metric '%s': options degree, k and rb apply to triangle-mesh surfaces "
-                     "only (this one: '%s')",
+                     "metric '%s': options degree, k, rb and grad apply to triangle-mesh "
+                     "surfaces only (this one: '%s')",
                      sp.name, s ? s->ops->kind : "none");
         as_field_spec_clear(ctx, &sp);
         return st;

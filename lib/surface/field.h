@@ -100,6 +100,8 @@ typedef struct as_field_spec {
     int has_eps, has_en, has_power, has_phi, has_lambda, has_h;
     double degree, k, rb; /* curvature on meshes (degree, k, rb) and sol (rb) */
     int has_degree, has_k, has_rb;
+    double grad;          /* curvature on meshes and sol: the gradation (> 1) */
+    int has_grad;
     as_expr *expr; /* gradient, hessian, shock (owned) */
     char *path;    /* sol (owned, path_size bytes) */
     size_t path_size;
@@ -108,16 +110,31 @@ typedef struct as_field_spec {
 /*
  * Parse a SPEC (the command line's --metric):
  *   euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P][,degree=D][,k=K][,rb=R]
- *   | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
- *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE[,rb=R]
+ *   [,grad=G] | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]
+ *   | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE[,rb=R][,grad=G]
  * Options follow the name (or the expression) after commas at parenthesis depth 0, as
  * NAME=VALUE with a finite number; spaces around names and values are allowed.
  * Returns EINVAL for an unknown metric name or option, a repeated option, a bad value
- * (eps, en, h, lambda, power, rb > 0, phi >= 0, degree 2, 3 or 4, k an integer >= 1;
- * degree, k and rb are for triangle-mesh surfaces) or a missing expression; EFORMAT for a
+ * (eps, en, h, lambda, power, rb > 0, phi >= 0, grad > 1, degree 2, 3 or 4, k an integer
+ * >= 1; degree, k, rb and grad are for triangle-mesh surfaces) or a missing expression; EFORMAT for a
  * malformed expression or unbalanced parentheses; ENOMEM. Messages name the culprit.
  */
 anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out);
+
+/*
+ * The gradation of per-vertex tensors tens (6 per vertex, points xyz) along the edges of
+ * the triangles tri (nt of them), in place: the metric M_i of each vertex, carried to a
+ * neighbour j at M_i-length l with its sizes grown by the factor eta^-1 = 1 + l ln(grad)
+ * (Alauzet's anisotropic size gradation in metric space, after Borouchaki, Hecht and
+ * Frey; MMG's hgrad), is intersected into M_j (the largest metric whose unit ball lies in
+ * both), until no tensor changes by more than a relative 1e-3 (at most AS_FIELD_GRAD_PASSES
+ * passes). Afterwards M_j >= eta^2 M_i (to that tolerance) across every edge, and every
+ * tensor is at least its input. OK, or EINVAL naming a vertex whose tensor stops being a
+ * metric (only by overflow).
+ */
+#define AS_FIELD_GRAD_PASSES 200
+anistar_status as_field_gradation(anistar_context *ctx, double *tens, const double *xyz,
+                                  size_t nt, const int32_t *tri, double grad);
 void as_field_spec_clear(anistar_context *ctx, as_field_spec *sp);
 
 struct anistar_metric {

@@ -251,29 +251,23 @@ static anistar_status add_trouble(anistar_context *ctx, as_starset *ss, const do
     return ANISTAR_OK;
 }
 
-/* The ball around piece oc of the mesh (vertex labels uf): its box's center, three times
- * its diagonal (the piece and the part it came from around it). */
-static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const as_trimesh *tm,
-                                    const int32_t *uf, int32_t oc) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t v = 0; v < tm->nv; v++) {
-        if (uf[v] != oc) continue;
-        for (int k = 0; k < 3; k++) {
-            double x = tm->xyz[3 * v + k];
-            if (x < lo[k]) lo[k] = x;
-            if (x > hi[k]) hi[k] = x;
-        }
-    }
-    double c[3], d2 = 0;
-    for (int k = 0; k < 3; k++) {
-        c[k] = 0.5 * (lo[k] + hi[k]);
-        d2 += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-    }
-    return add_trouble(ctx, ss, c, 3 * sqrt(d2));
+/* The diagonal of a piece's box (lo[3] hi[3]). */
+static double box_diagonal(const double box[6]) {
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (box[3 + k] - box[k]) * (box[3 + k] - box[k]);
+    return sqrt(d2);
+}
+
+/* The ball around a piece of the mesh with box box (lo[3] hi[3]): the box's center, three
+ * times its diagonal (the piece and the part it came from around it). */
+static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const double box[6]) {
+    double c[3];
+    for (int k = 0; k < 3; k++) c[k] = 0.5 * (box[k] + box[3 + k]);
+    return add_trouble(ctx, ss, c, 3 * box_diagonal(box));
 }
 
 /*
- * 1 in *yes when the piece oc of the mesh (vertex labels uf, one of its vertices v0)
+ * 1 in *yes when a piece of the mesh (its box lo[3] hi[3], one of its vertices v0)
  * bounds a region of its own: from a point just off S at v0, on one side or the other,
  * each of the six axis rays meets S within one and a half times the diagonal of the
  * piece's box. From inside a separate blob (or inside a cavity) every ray leaves through
@@ -281,20 +275,10 @@ static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const 
  * part stays inside S past the fragment, and from the other side rays go away from S.
  */
 static anistar_status piece_encloses(anistar_context *ctx, const as_surface *surf,
-                                     const as_trimesh *tm, const int32_t *uf, int32_t oc,
-                                     int32_t v0, int *yes) {
+                                     const as_trimesh *tm, const double box[6], int32_t v0,
+                                     int *yes) {
     *yes = 0;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t v = 0; v < tm->nv; v++) {
-        if (uf[v] != oc) continue;
-        for (int k = 0; k < 3; k++) {
-            double x = tm->xyz[3 * v + k];
-            if (x < lo[k]) lo[k] = x;
-            if (x > hi[k]) hi[k] = x;
-        }
-    }
-    double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
-    double diag = sqrt(dx * dx + dy * dy + dz * dz), len = 1.5 * diag;
+    double diag = box_diagonal(box), len = 1.5 * diag;
     const double *x0 = tm->xyz + 3 * (size_t)v0;
     double n[3];
     int sing = 0;
@@ -621,8 +605,8 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input component %d came out as two or more "
                         "pieces, one of them around (%.17g, %.17g, %.17g)",
                         (int)c, x[0], x[1], x[2]);
-                if ((s = trouble_piece(ctx, ss, tm, uf, oc)) == ANISTAR_OK)
-                    s = trouble_piece(ctx, ss, tm, uf, sc_out[c]);
+                if ((s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc)) == ANISTAR_OK)
+                    s = trouble_piece(ctx, ss, cbox + 6 * (size_t)sc_out[c]);
                 goto done;
             }
         } else {
@@ -635,7 +619,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input components %d and %d are joined in one "
                         "piece of the mesh around (%.17g, %.17g, %.17g)",
                         (int)cs[oc], (int)c, x[0], x[1], x[2]);
-                s = trouble_piece(ctx, ss, tm, uf, oc);
+                s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc);
                 goto done;
             }
             m->stats.components_joined++;
@@ -663,15 +647,12 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
         if (!exact) {
             /* a piece that fits in a ball of the floor's radius: whatever joins it to
              * the rest of S, or whether it bounds a region, is below the resolution */
-            const double *B = cbox + 6 * oc;
-            double dd = (B[3] - B[0]) * (B[3] - B[0]) + (B[4] - B[1]) * (B[4] - B[1]) +
-                        (B[5] - B[2]) * (B[5] - B[2]);
-            if (dd <= 4 * ss->feat.floor_e * ss->feat.floor_e) {
+            if (box_diagonal(cbox + 6 * oc) <= 2 * ss->feat.floor_e) {
                 m->stats.pieces_below_resolution++;
                 continue;
             }
             int yes = 0;
-            if ((s = piece_encloses(ctx, ss->surf, tm, uf, (int32_t)oc, cvert[oc], &yes)) !=
+            if ((s = piece_encloses(ctx, ss->surf, tm, cbox + 6 * oc, cvert[oc], &yes)) !=
                 ANISTAR_OK)
                 goto done;
             if (yes) {
@@ -687,7 +668,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     x[0], x[1], x[2],
                     exact ? "covers no input component" : "bounds no region of its own");
         }
-        if ((s = trouble_piece(ctx, ss, tm, uf, (int32_t)oc)) != ANISTAR_OK) goto done;
+        if ((s = trouble_piece(ctx, ss, cbox + 6 * oc)) != ANISTAR_OK) goto done;
     }
     if (*sig) goto done;
     if (as_surface_is_mesh(ss->surf)) {
@@ -705,7 +686,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                             "features finer than the sampling",
                             x[0], x[1], x[2], chi, want);
                 }
-                if ((s = trouble_piece(ctx, ss, tm, uf, (int32_t)oc)) != ANISTAR_OK) goto done;
+                if ((s = trouble_piece(ctx, ss, cbox + 6 * oc)) != ANISTAR_OK) goto done;
             }
         }
         if (*sig) goto done;

@@ -347,10 +347,8 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
             const double *x = ss->xyz + 3 * (size_t)v;
             as_fail(ctx, ANISTAR_INCOMPLETE,
                     "mesher: uncertified: the star of site %d at (%.17g, %.17g, %.17g) is not "
-                    "one closed fan (%d facets) and the topology rule found no point to insert "
-                    "farther than hmin %g from it (a metric too distorted there at the surface's "
-                    "resolution: grade it, grad=, or raise hmin)",
-                    (int)v, x[0], x[1], x[2], (int)st->nrf, ss->hmin);
+                    "one closed fan (%d facets) and the topology rule found no point to insert",
+                    (int)v, x[0], x[1], x[2], (int)st->nrf);
             return ANISTAR_OK;
         }
     }

@@ -1077,14 +1077,6 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             int found;
             if ((s = topology_point(&R, v, p, &d, &found)) != ANISTAR_OK) break;
             if (!found) continue; /* certification names the star if it stays open */
-            /* design: below the surface's resolution (hmin) the topology rule stops too: a
-             * star that no point farther than hmin closes is one the metric's distortion
-             * keeps open at every scale (refinement would spiral into v: the elephant with
-             * the default curvature did, down to 7e-15); certification reports it */
-            const double *xv = ss->xyz + 3 * (size_t)v;
-            double e2 = (p[0] - xv[0]) * (p[0] - xv[0]) + (p[1] - xv[1]) * (p[1] - xv[1]) +
-                        (p[2] - xv[2]) * (p[2] - xv[2]);
-            if (ss->hmin > 0 && e2 < ss->hmin * ss->hmin) continue;
             if ((s = as_refine_check_point(ss, p, v, NULL, d)) != ANISTAR_OK) break;
             if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
             R.cnt.topology++;

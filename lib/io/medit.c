@@ -351,7 +351,9 @@ anistar_status as_medit_write(anistar_context *ctx, const char *path, const as_t
 }
 
 anistar_status as_sol_write(anistar_context *ctx, const char *path, const as_trimesh *m) {
-    if (!m->tensor)
+    /* an empty mesh (a run stopped before its first consistent facet) has no tensor
+     * array and writes an empty solution */
+    if (!m->tensor && m->nv > 0)
         return as_fail(ctx, ANISTAR_EINVAL, "%s: the mesh has no per-vertex tensors to write",
                        path);
     as_wfile w;

@@ -194,15 +194,11 @@ static int surface_check(const surface_opts *so) {
             so->has_iso ? "--iso" : "--inside");
         return -1;
     }
-    if (kind == FILE_IMAGE && !so->has_iso) {
-        say("%s: an image needs --iso V (the isovalue of the surface)", so->file);
-        return -1;
-    }
     return 0;
 }
 
 /* Build the surface. Returns an exit status (EXIT_OK on success). */
-static int surface_make(anistar_context *ctx, const surface_opts *so, anistar_surface **s) {
+static int surface_make(anistar_context *ctx, surface_opts *so, anistar_surface **s) {
     anistar_status st;
     if (so->builtin) {
         st = anistar_surface_builtin(ctx, so->builtin, s);
@@ -211,7 +207,19 @@ static int surface_make(anistar_context *ctx, const surface_opts *so, anistar_su
     } else {
         /* files: every failure (unreadable, malformed, not closed, no surface at iso) is
          * an error, not a usage error */
-        if (file_kind(so->file) == FILE_IMAGE)
+        st = ANISTAR_OK;
+        if (file_kind(so->file) == FILE_IMAGE && !so->has_iso) {
+            /* no --iso: Otsu's threshold of the voxels (said on stderr, kept in --stats) */
+            st = anistar_image_file_otsu(ctx, so->file, &so->iso);
+            if (st == ANISTAR_OK) {
+                so->has_iso = 1;
+                fprintf(stderr, "anistar: %s: no --iso: Otsu's threshold %.17g\n", so->file,
+                        so->iso);
+            }
+        }
+        if (st != ANISTAR_OK)
+            ;
+        else if (file_kind(so->file) == FILE_IMAGE)
             st = anistar_surface_from_image_file(
                 ctx, so->file, so->iso, so->inside ? so->inside : ANISTAR_INSIDE_GREATER, s);
         else
@@ -701,7 +709,7 @@ static int mesh_progress(size_t vertices, size_t inconsistent, double seconds, v
 /* Write the --stats JSON. Returns 0, or -1 if the file cannot be written. */
 static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
                             const double *values, const char *metric, int complete,
-                            int optimize) {
+                            int optimize, const surface_opts *so) {
     FILE *f = fopen(path, "w");
     if (!f) return -1;
     fprintf(f, "{\n");
@@ -743,6 +751,8 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             st->pieces_below_resolution, st->edges_below_resolution);
     fprintf(f, "  \"feature_alpha\": %.17g,\n  \"feature_halvings\": %llu,\n",
             st->feature_alpha, (unsigned long long)st->feature_halvings);
+    fprintf(f, "  \"topology_below_hmin\": %llu,\n  \"sites_unused\": %zu,\n",
+            (unsigned long long)st->topology_below_hmin, st->sites_unused);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
             (unsigned long long)st->pick_valid_tries,
             (unsigned long long)st->pick_valid_failures);
@@ -772,6 +782,7 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     for (size_t i = 0; i < NMESH_PARAMS; i++)
         fprintf(f, ", \"%s\": %.17g", mesh_params[i].json, values[i]);
     fprintf(f, ", \"optimize\": %s", optimize ? "true" : "false");
+    if (so->has_iso) fprintf(f, ", \"iso\": %.17g", so->iso);
     fprintf(f, "},\n  \"seed\": %.17g\n}\n", values[MESH_SEED]);
     int bad = ferror(f);
     if (fclose(f) != 0) bad = 1;
@@ -943,7 +954,7 @@ static int cmd_mesh(int argc, char **argv) {
     }
     anistar_mesh_stats ms;
     anistar_mesh_get_stats(mesh, &ms);
-    if (stats && mesh_stats_write(stats, &ms, value, metric, st == ANISTAR_OK, optimize)) {
+    if (stats && mesh_stats_write(stats, &ms, value, metric, st == ANISTAR_OK, optimize, &so)) {
         say("cannot write '%s'", stats);
         rc = EXIT_ERROR;
         goto done;
@@ -1026,9 +1037,10 @@ static void help(void) {
            "(sqrt(x^2+y^2)-R)^2+z^2-r^2\"\n"
            "  --builtin NAME[,PARAM=V...][,bound=R]  a built-in surface (below)\n"
            "  FILE.off|.obj|.ply|.stl|.mesh          a closed triangle mesh\n"
-           "  FILE.inr|.nrrd|.nhdr|.mha|.mhd --iso V [--inside greater|less]\n"
+           "  FILE.inr|.nrrd|.nhdr|.mha|.mhd [--iso V] [--inside greater|less]\n"
            "                                        an isosurface of a 3D image (inside:\n"
-           "                                        values greater than V, the default)\n\n"
+           "                                        values greater than V, the default;\n"
+           "                                        no --iso: Otsu's threshold)\n\n"
            "--metric SPEC:\n"
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"

@@ -423,6 +423,13 @@ typedef struct anistar_mesh_stats {
                                      feature size: 1, halved each time the final checks
                                      found the topology wrong (down to 1/8) */
     uint64_t feature_halvings;    /* how many times that happened */
+    uint64_t topology_below_hmin; /* topology refinement points not inserted because they
+                                     lay nearer than hmin to a site (the star was left to
+                                     the final checks) */
+    size_t sites_unused;          /* sites whose star holds no restricted facet: no facet
+                                     uses them, they are not output vertices (a complete
+                                     run accepts them; their cells met S only where the
+                                     topology rule could not refine above hmin) */
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);
@@ -676,6 +683,21 @@ ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
                                                       const double spacing[3],
                                                       const double origin[3], double iso,
                                                       int inside, anistar_surface **out);
+
+/*
+ * An automatic isovalue: Otsu's threshold of the voxels (the value that best splits them
+ * into two classes, maximising the between-class variance; 256 equal bins over the range
+ * of the finite values; the threshold is a bin boundary strictly inside the range). For
+ * a CT or MRI scan it separates the object from the background; for a label image it
+ * splits the labels in two groups, so give the isovalue yourself there. The file form
+ * reads the image (as anistar_surface_from_image_file). ANISTAR_ENOSURFACE when every
+ * finite voxel has the same value, and the readers' errors (EIO, EFORMAT, ENOMEM);
+ * EINVAL for NULL arguments or a zero dimension.
+ */
+ANISTAR_API anistar_status anistar_image_file_otsu(anistar_context *ctx, const char *path,
+                                                   double *iso);
+ANISTAR_API anistar_status anistar_image_otsu(anistar_context *ctx, const double *voxels,
+                                              const size_t dims[3], double *iso);
 
 /* Free a surface (NULL is ok). Every metric made on it must have been freed before. */
 ANISTAR_API void anistar_surface_free(anistar_surface *s);

@@ -599,6 +599,7 @@ ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char 
 
 #include "surface/field.h"
 #include "surface/surface.h"
+#include "io/image_io.h"
 
 #include <ctype.h>
 
@@ -728,6 +729,49 @@ ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
     if (!voxels || !dims)
         return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image: NULL voxels or dims");
     return as_image_surface_from_array(ctx, voxels, dims, spacing, origin, iso, inside, out);
+}
+
+ANISTAR_API anistar_status anistar_image_file_otsu(anistar_context *ctx, const char *path,
+                                                   double *iso) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!path || !iso) return as_fail(ctx, ANISTAR_EINVAL, "anistar_image_file_otsu: NULL argument");
+    as_image *img = NULL;
+    anistar_status s = as_image_read(ctx, path, &img);
+    if (s != ANISTAR_OK) return s;
+    int r = as_image_otsu(img, iso);
+    as_image_free(ctx, img);
+    if (r)
+        return as_fail(ctx, ANISTAR_ENOSURFACE,
+                       "%s: every voxel has the same value (or none is finite): no isovalue "
+                       "splits it",
+                       path);
+    return ANISTAR_OK;
+}
+
+ANISTAR_API anistar_status anistar_image_otsu(anistar_context *ctx, const double *voxels,
+                                              const size_t dims[3], double *iso) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!voxels || !dims || !iso)
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_image_otsu: NULL argument");
+    size_t n;
+    if (!dims[0] || !dims[1] || !dims[2])
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_image_otsu: a zero dimension");
+    if (as_mul_size(dims[0], dims[1], &n) || as_mul_size(n, dims[2], &n))
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_image_otsu: the voxel count overflows");
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n; i++) {
+        if (!isfinite(voxels[i])) continue;
+        if (voxels[i] < lo) lo = voxels[i];
+        if (voxels[i] > hi) hi = voxels[i];
+    }
+    as_otsu_hist h;
+    as_otsu_init(&h, lo, hi);
+    as_otsu_add(&h, voxels, n);
+    if (!(lo < hi) || as_otsu_pick(&h, iso))
+        return as_fail(ctx, ANISTAR_ENOSURFACE,
+                       "anistar_image_otsu: every voxel has the same value (or none is finite): "
+                       "no isovalue splits it");
+    return ANISTAR_OK;
 }
 
 ANISTAR_API void anistar_surface_free(anistar_surface *s) { as_surface_free(s); }

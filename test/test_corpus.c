@@ -163,7 +163,7 @@ static void run_case(const ccase *c, int *certified) {
         assert_true(mesh->tm.nv >= 4);
         if (S->components != c->comps)
             fail_msg("%s: %zu components, S has %zu", c->name, S->components, c->comps);
-        mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+        mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius, 0};
         mc_report rep;
         mc_report_init(&rep);
         mc_check_topology(ctx, &mesh->tm, &lim, &rep);

@@ -174,7 +174,7 @@ static void run_case(const e2e_case *c) {
     assert_int_equal(S->inconsistent_facets, 0);
     assert_int_equal(S->complete, 1);
     assert_true(mesh->tm.nv >= 50);
-    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius, 0};
     mc_report rep;
     mc_report_init(&rep);
     mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);
@@ -248,7 +248,7 @@ static void test_checker_catches_damage(void **state) {
     anistar_mesh *mesh;
     as_starset *ss;
     assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
-    mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * s->radius};
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * s->radius, 0};
     mc_report rep;
     mc_report_init(&rep);
     mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);

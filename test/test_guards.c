@@ -362,7 +362,7 @@ static void test_graded_crease_metric(void **state) {
     assert_true(S->complete && S->closed_manifold);
     assert_int_equal(S->inconsistent_facets, 0);
     assert_int_equal(S->facets_below_hmin, 0);
-    mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * r.s->radius};
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, 2, 1e-9 * r.s->radius, 0};
     mc_report rep;
     mc_report_init(&rep);
     mc_check_topology(r.ctx, &r.mesh->tm, &lim, &rep);

@@ -22,6 +22,8 @@
 #include "surface/surface.h"
 
 #include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -301,6 +303,102 @@ static void test_brain(void **state) {
     anistar_context_free(ctx);
 }
 
+/* ---- Otsu's threshold ---------------------------------------------------------------------------- */
+
+/* The exact Otsu split of integer values 0..255 from their counts: the largest
+ * n0 n1 (mu0 - mu1)^2 over the splits "v <= j" (first maximum); the variance at split j in
+ * *var_at (NULL: not wanted) for j = at_j. Returns the best j. */
+static int exact_otsu(const double *count, int nvals, double *best_var, int at_j, double *var_at) {
+    double n = 0, m = 0;
+    for (int v = 0; v < nvals; v++) {
+        n += count[v];
+        m += count[v] * v;
+    }
+    double n0 = 0, m0 = 0, best = -1;
+    int bj = -1;
+    for (int j = 0; j < nvals - 1; j++) {
+        n0 += count[j];
+        m0 += count[j] * j;
+        double n1 = n - n0;
+        if (n0 <= 0 || n1 <= 0) continue;
+        double d = m0 / n0 - (m - m0) / n1, var = n0 * n1 * d * d;
+        if (j == at_j && var_at) *var_at = var;
+        if (var > best) {
+            best = var;
+            bj = j;
+        }
+    }
+    *best_var = best;
+    return bj;
+}
+
+static void test_otsu(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    /* synthetic: two noisy classes of integers in [0, 256] (no 255: 255 and 256 would
+     * share the last bin); the bins are then the values, and the split must be the exact
+     * one (up to rounding in the variances) */
+    size_t dims[3] = {40, 30, 20}, n = 40 * 30 * 20;
+    double *vox = malloc(n * sizeof *vox), count[257] = {0};
+    assert_non_null(vox);
+    uint64_t r = 12345;
+    for (size_t i = 0; i < n; i++) {
+        r = r * 6364136223846793005ULL + 1442695040888963407ULL;
+        int noise = (int)((r >> 33) % 61) - 30;
+        int v = (i % 3 == 0 ? 170 : 60) + noise + (int)((r >> 20) % 21) - 10;
+        if (v == 255) v = 254;
+        vox[i] = v;
+    }
+    vox[0] = 0;
+    vox[1] = 256;
+    for (size_t i = 0; i < n; i++) count[(int)vox[i]]++;
+    double iso = 0, best, at;
+    assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_OK);
+    assert_true(iso > 0 && iso < 256 && iso == floor(iso)); /* a bin boundary: an integer */
+    exact_otsu(count, 257, &best, (int)iso - 1, &at);
+    assert_true(at >= best * (1 - 1e-12));
+    assert_true(iso > 60 && iso < 170); /* between the two classes */
+    /* a constant image has no threshold; bad arguments */
+    for (size_t i = 0; i < n; i++) vox[i] = 7;
+    assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_ENOSURFACE);
+    vox[5] = NAN; /* non-finite voxels are skipped: still constant */
+    assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_ENOSURFACE);
+    size_t zero[3] = {4, 0, 4};
+    assert_int_equal(anistar_image_otsu(ctx, vox, zero, &iso), ANISTAR_EINVAL);
+    assert_int_equal(anistar_image_otsu(ctx, NULL, dims, &iso), ANISTAR_EINVAL);
+    assert_int_equal(anistar_image_otsu(NULL, vox, dims, &iso), ANISTAR_EINVAL);
+    free(vox);
+    /* the brain file: the file form and the array form of the raw voxels agree, and the
+     * split is within 1% of the exact optimum over the integer values (the bins are
+     * 255/256 wide: 254 and 255 share the last one) */
+    char path[512], raw[512];
+    data_path(path, sizeof path, "brain_t1.mhd");
+    data_path(raw, sizeof raw, "brain_t1.raw");
+    double iso_file = 0, iso_arr = 0;
+    assert_int_equal(anistar_image_file_otsu(ctx, path, &iso_file), ANISTAR_OK);
+    size_t bd[3] = {128, 128, 62}, bn = 128 * 128 * 62;
+    unsigned char *bytes = malloc(bn);
+    double *bv = malloc(bn * sizeof *bv), bc[256] = {0};
+    assert_true(bytes && bv);
+    FILE *fp = fopen(raw, "rb");
+    assert_non_null(fp);
+    assert_int_equal(fread(bytes, 1, bn, fp), bn);
+    fclose(fp);
+    for (size_t i = 0; i < bn; i++) {
+        bv[i] = bytes[i];
+        bc[bytes[i]]++;
+    }
+    assert_int_equal(anistar_image_otsu(ctx, bv, bd, &iso_arr), ANISTAR_OK);
+    assert_true(iso_file == iso_arr);
+    exact_otsu(bc, 256, &best, (int)floor(iso_arr), &at);
+    assert_true(at >= 0.99 * best);
+    free(bytes);
+    free(bv);
+    assert_int_equal(anistar_image_file_otsu(ctx, "/nonexistent/x.nrrd", &iso), ANISTAR_EIO);
+    assert_int_equal(anistar_image_file_otsu(ctx, NULL, &iso), ANISTAR_EINVAL);
+    anistar_context_free(ctx);
+}
+
 /* ---- errors and the public API ----------------------------------------------------------------- */
 
 static void test_errors_and_api(void **state) {
@@ -418,7 +516,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_synthetic_ball), cmocka_unit_test(test_skull),
         cmocka_unit_test(test_brain),          cmocka_unit_test(test_errors_and_api),
-        cmocka_unit_test(test_alloc_failures),
+        cmocka_unit_test(test_alloc_failures), cmocka_unit_test(test_otsu),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1137,10 +1137,26 @@ static void test_probe_files(void **state) {
     snprintf(args, sizeof args, "probe %s/brain_t1.nhdr --iso 40 --at 127,127,91",
              AS_TEST_DATA_DIR);
     assert_int_equal(run_tool(args, out, 8192), 0);
-    /* usage errors (status 2): an image without --iso, --iso or --inside with a mesh, an
-     * unknown extension, a bad --inside */
-    const char *usage[] = {"probe %s/brain_t1.mhd --at 1,1,1",
-                           "probe %s/knot1.off --iso 3 --at 1,1,1",
+    /* an image without --iso: Otsu's threshold (anistar_image_file_otsu), the same f as
+     * with that isovalue given */
+    double otsu;
+    {
+        anistar_context *cx = anistar_context_new(NULL);
+        char ip[512];
+        snprintf(ip, sizeof ip, "%s/brain_t1.mhd", AS_TEST_DATA_DIR);
+        assert_int_equal(anistar_image_file_otsu(cx, ip, &otsu), ANISTAR_OK);
+        anistar_context_free(cx);
+    }
+    snprintf(args, sizeof args, "probe %s/brain_t1.mhd --at 127,127,91", AS_TEST_DATA_DIR);
+    assert_int_equal(run_tool(args, out, 8192), 0);
+    double f_auto = json_number(out, "f");
+    snprintf(args, sizeof args, "probe %s/brain_t1.mhd --iso %.17g --at 127,127,91",
+             AS_TEST_DATA_DIR, otsu);
+    assert_int_equal(run_tool(args, out, 8192), 0);
+    assert_true(json_number(out, "f") == f_auto);
+    /* usage errors (status 2): --iso or --inside with a mesh, an unknown extension, a bad
+     * --inside */
+    const char *usage[] = {"probe %s/knot1.off --iso 3 --at 1,1,1",
                            "probe %s/knot1.off --inside less --at 1,1,1",
                            "probe %s/README.md --at 1,1,1",
                            "probe %s/skull_2.9.inr --iso 2.9 --inside more --at 1,1,1",

@@ -65,7 +65,7 @@ static void run_case(const mcase *c) {
     assert_true(S->closed_manifold);
     /* topology, shape and size in every vertex metric, vertices on S (implicit:
      * |f|/|grad f| <= 1e-9 R), stars: independently of the mesher's state */
-    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius, 0};
     mc_report rep;
     mc_report_init(&rep);
     mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);

@@ -143,7 +143,7 @@ static void run_case(const ocase *c, double **xyz_out, int32_t **tri_out, size_t
     }
     /* the shared output checks (test/common/mesh_check.c), the star of every vertex
      * against an independent rebuild included */
-    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius};
+    mc_limits lim = {p.r0, p.rho0, p.gamma0, c->chi, 1e-9 * s->radius, 0};
     mc_report rep;
     mc_report_init(&rep);
     mc_check_all(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, &rep);

@@ -326,6 +326,72 @@ void as_image_range(const as_image *img, double *lo, double *hi) {
     *hi = b;
 }
 
+void as_otsu_init(as_otsu_hist *h, double lo, double hi) {
+    memset(h, 0, sizeof *h);
+    h->lo = lo;
+    h->hi = hi;
+}
+
+void as_otsu_add(as_otsu_hist *h, const double *v, size_t n) {
+    const double w = h->hi - h->lo;
+    if (!(w > 0)) return;
+    for (size_t i = 0; i < n; i++) {
+        if (!isfinite(v[i])) continue;
+        double t = (v[i] - h->lo) / w * AS_OTSU_BINS;
+        int b = t <= 0 ? 0 : t >= AS_OTSU_BINS ? AS_OTSU_BINS - 1 : (int)t;
+        h->count[b]++;
+    }
+}
+
+int as_otsu_pick(const as_otsu_hist *h, double *iso) {
+    const double w = h->hi - h->lo;
+    if (!(w > 0) || !isfinite(w)) return -1;
+    /* class sums by bin centre; the split after bin k (k = 0 .. BINS-2) */
+    double n = 0, m = 0;
+    for (int k = 0; k < AS_OTSU_BINS; k++) {
+        n += (double)h->count[k];
+        m += (double)h->count[k] * (k + 0.5);
+    }
+    if (!(n > 0)) return -1;
+    double n0 = 0, m0 = 0, best = -1;
+    int at = AS_OTSU_BINS / 2 - 1;
+    for (int k = 0; k < AS_OTSU_BINS - 1; k++) {
+        n0 += (double)h->count[k];
+        m0 += (double)h->count[k] * (k + 0.5);
+        double n1 = n - n0;
+        if (n0 <= 0 || n1 <= 0) continue;
+        double d = m0 / n0 - (m - m0) / n1, var = n0 * n1 * d * d;
+        if (var > best) { /* the first maximum: ties go to the lower split */
+            best = var;
+            at = k;
+        }
+    }
+    *iso = h->lo + w * (double)(at + 1) / AS_OTSU_BINS;
+    return 0;
+}
+
+int as_image_otsu(const as_image *img, double *iso) {
+    double lo = INFINITY, hi = -INFINITY, buf[256];
+    for (size_t first = 0; first < img->count; first += 256) {
+        size_t n = img->count - first < 256 ? img->count - first : 256;
+        as_image_to_double(img, first, n, buf);
+        for (size_t i = 0; i < n; i++) {
+            if (!isfinite(buf[i])) continue;
+            if (buf[i] < lo) lo = buf[i];
+            if (buf[i] > hi) hi = buf[i];
+        }
+    }
+    if (!(lo < hi)) return -1;
+    as_otsu_hist h;
+    as_otsu_init(&h, lo, hi);
+    for (size_t first = 0; first < img->count; first += 256) {
+        size_t n = img->count - first < 256 ? img->count - first : 256;
+        as_image_to_double(img, first, n, buf);
+        as_otsu_add(&h, buf, n);
+    }
+    return as_otsu_pick(&h, iso);
+}
+
 size_t as_image_count_nonfinite(const as_image *img, size_t *first_idx) {
     size_t bad = 0;
     if (img->type == AS_VOXEL_F32) {

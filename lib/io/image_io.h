@@ -126,6 +126,25 @@ void as_image_range(const as_image *img, double *lo, double *hi);
  * the first one when there is one (first_idx may be NULL). */
 size_t as_image_count_nonfinite(const as_image *img, size_t *first_idx);
 
+/*
+ * Otsu's threshold (Otsu 1979: the value that maximises the between-class variance of
+ * the two classes it splits the voxels into), on a histogram of AS_OTSU_BINS equal bins
+ * over [lo, hi] (the finite voxel range): fill h with as_otsu_init, feed every voxel
+ * with as_otsu_add (non-finite values are skipped), then as_otsu_pick. The threshold is
+ * a bin boundary strictly between lo and hi.
+ * as_otsu_pick returns 0, or -1 when lo == hi or no voxel was finite.
+ */
+#define AS_OTSU_BINS 256
+typedef struct as_otsu_hist {
+    double lo, hi;
+    uint64_t count[AS_OTSU_BINS];
+} as_otsu_hist;
+void as_otsu_init(as_otsu_hist *h, double lo, double hi);
+void as_otsu_add(as_otsu_hist *h, const double *v, size_t n);
+int as_otsu_pick(const as_otsu_hist *h, double *iso);
+/* Otsu's threshold of an image's voxels. 0, or -1 (constant image, or no finite voxel). */
+int as_image_otsu(const as_image *img, double *iso);
+
 /* ---- readers ----------------------------------------------------------------------- */
 
 /* By extension (case-insensitive): .inr, .nrrd, .nhdr, .mha, .mhd. Another extension:

@@ -69,6 +69,7 @@ typedef struct as_mesher_counters {
     uint64_t stall_max;
     uint64_t halvings; /* times alpha was halved after failed final checks */
     uint64_t specks;   /* image components below the resolution, not meshed */
+    uint64_t topo_below_hmin; /* topology points refused: nearer than hmin to a site */
     double t_init, t_refine, t_output, t_total;
     double estimate_vertices, estimate_bytes;
     int stop_reason; /* anistar_stop_reason */

@@ -180,6 +180,9 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_approx = cnt->cause[AS_CAUSE_APPROX];
     S->insertions_feature = cnt->cause[AS_CAUSE_FEATURE];
     S->insertions_hmax = cnt->cause[AS_CAUSE_HMAX];
+    S->topology_below_hmin = cnt->topo_below_hmin;
+    S->sites_unused = 0;
+    for (int32_t v = ss->first_site; v < ss->n; v++) S->sites_unused += ss->stars[v]->nrf == 0;
     S->stall_max = cnt->stall_max;
     S->components_below_resolution = cnt->specks;
     S->estimate_vertices = cnt->estimate_vertices;
@@ -341,14 +344,24 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     *sig = 0;
     ss->nfix = 0;
     ss->ntrouble = 0;
+    /* design: a star with no restricted facet at all is no vertex of the output (every
+     * facet that uses a site is in its star): its site is a point whose cell met S only
+     * where the topology rule could not refine above hmin (a corner of a CAD mesh). The
+     * mesh without it is judged by the checks below (closed manifold, components and
+     * their Euler characteristics, orientation, fidelity), which is what a missing piece
+     * of S would fail; it is counted in stats.sites_unused. A star with facets that are
+     * not one closed fan is a defect of the output itself. */
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         const as_star *st = ss->stars[v];
-        if (!st->closed) {
+        if (!st->closed && st->nrf > 0) {
             const double *x = ss->xyz + 3 * (size_t)v;
             as_fail(ctx, ANISTAR_INCOMPLETE,
                     "mesher: uncertified: the star of site %d at (%.17g, %.17g, %.17g) is not "
-                    "one closed fan (%d facets) and the topology rule found no point to insert",
-                    (int)v, x[0], x[1], x[2], (int)st->nrf);
+                    "one closed fan (%d facets) and the topology rule found no point to insert "
+                    "farther than hmin %g from the other sites (S is not smooth there, e.g. a "
+                    "sharp crease or corner of the input mesh, or the metric is too distorted "
+                    "at that scale: lower hmin, grade the metric with grad=, or lower r0)",
+                    (int)v, x[0], x[1], x[2], (int)st->nrf, ss->hmin);
             return ANISTAR_OK;
         }
     }

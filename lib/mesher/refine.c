@@ -1077,6 +1077,26 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             int found;
             if ((s = topology_point(&R, v, p, &d, &found)) != ANISTAR_OK) break;
             if (!found) continue; /* certification names the star if it stays open */
+            /* design: on a triangle mesh the topology rule stops at the surface's
+             * resolution too (hmin, as the other rules): a point nearer than hmin to a
+             * site is not inserted, and certification judges the star. A polyhedron is
+             * not smooth (lfs is 0 at every edge with a dihedral angle: the creases and
+             * corners of a CAD mesh, the facets of a scan refined below its own edges),
+             * and there the restricted Delaunay triangulation need not become a disk at
+             * any sampling: the farthest crossing of a star's cell lies nearer and nearer
+             * the crease, and the rule spiralled into it (the lever, the hinge and the
+             * elephant with the default curvature reached 1e-15 and the 1e-9 trap).
+             * Implicit and image surfaces are C2: the rule terminates there (its points
+             * are a fraction of lfs > 0 from the sites), and the brain at r0 6 needs it
+             * below its hmin to be certified */
+            if (as_surface_is_mesh(ss->surf)) {
+                int32_t near;
+                double dn = nearest_site(ss, p, &near);
+                if (ss->hmin > 0 && dn < ss->hmin) {
+                    R.cnt.topo_below_hmin++;
+                    continue;
+                }
+            }
             if ((s = as_refine_check_point(ss, p, v, NULL, d)) != ANISTAR_OK) break;
             if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
             R.cnt.topology++;

@@ -129,6 +129,16 @@ void mc_check_shape(const as_trimesh *m, const mc_limits *lim, mc_report *r) {
             mc_fail(r, "facet %zu: a vertex tensor is not positive definite", t);
             continue;
         }
+        if (lim->hmin > 0) {
+            double a = 1, l2 = 0;
+            for (int k = 0; k < 3; k++) {
+                if (mf[k].e[2] / mf[k].e[0] > a) a = mf[k].e[2] / mf[k].e[0];
+                double e[3];
+                sub3(m->xyz + 3 * (size_t)tri[k], m->xyz + 3 * (size_t)tri[(k + 1) % 3], e);
+                if (dot3(e, e) > l2) l2 = dot3(e, e);
+            }
+            if (sqrt(l2) < 2 * a * lim->hmin * (1 + 1e-9)) continue;
+        }
         for (int k = 0; k < 3; k++) {
             double rho = radius_edge(&mf[k], m->xyz + 3 * (size_t)tri[0],
                                      m->xyz + 3 * (size_t)tri[1], m->xyz + 3 * (size_t)tri[2]);
@@ -440,7 +450,14 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         }
         double rad = as_metric_dist(&mf, x, m->xyz + 3 * i);
         if (rad > r->r_max) r->r_max = rad;
-        if (!(rad < lim->r0 * (1 + 1e-9)))
+        int held = 0;
+        for (int h = 0; h < 3 && lim->hmin > 0; h++) {
+            if (g[h] < (int32_t)nextra) continue;
+            double e[3];
+            sub3(x, m->xyz + 3 * (size_t)(g[h] - (int32_t)nextra), e);
+            if (dot3(e, e) < lim->hmin * lim->hmin * (1 + 1e-9)) held = 1;
+        }
+        if (!held && !(rad < lim->r0 * (1 + 1e-9)))
             mc_fail(r, "vertex %zu: facet (%d %d %d) has surface circumradius %.17g >= r0 %g",
                     i, g[0], g[1], g[2], rad, lim->r0);
     }

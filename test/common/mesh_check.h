@@ -23,6 +23,12 @@ typedef struct mc_limits {
     double r0, rho0, gamma0; /* the mesher's parameters */
     long long chi;           /* Euler characteristic of S (2 - 2 genus) */
     double on_tol;           /* how far (absolute length) an output vertex may be from S */
+    double hmin;             /* the run's hmin (0: none): a facet it held is exempt from
+                                r0 (its surface center within hmin of one of its vertices,
+                                the mesher's criterion), and from rho0 and gamma0 when its
+                                longest edge is below 2 A hmin (A the largest anisotropy
+                                ratio of its vertex metrics: every facet the mesher holds
+                                is, so the exemption never hides less than the mesher's) */
 } mc_limits;
 
 /* What the checks found. */

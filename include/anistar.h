@@ -216,7 +216,9 @@ typedef enum anistar_param {
                                    rule applies: in a converging run that count falls to 0);
                                    integer in [0, 2^53], 0 = automatic (default: the larger
                                    of 50000 and 2 x the vertices at the last new low) */
-    ANISTAR_PARAM_HMIN,         /* Euclidean size floor, as MMG's hmin: a facet whose longest
+    ANISTAR_PARAM_HMIN,         /* Euclidean size floor, as MMG's hmin: the metric is clamped
+                                   (every eigenvalue of F at most r0/hmin, at least r0/hmax
+                                   with ANISTAR_PARAM_HMAX), and a facet whose longest
                                    edge is shorter gets no size, distortion, approximation
                                    or shape refinement (the feature size, the topology rule
                                    and consistency still apply; stats.facets_below_hmin

@@ -957,6 +957,14 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     if (s == ANISTAR_OK) {
         ss->hmin = prm->hmin > 0 ? prm->hmin : ss->feat.floor_e;
         ss->hmax = prm->hmax > 0 ? prm->hmax : 0;
+        /* design: and they bound the metric itself (as_starset_metric), as MMG's hmin and
+         * hmax do: a field from data asks for sizes below the surface's resolution (the
+         * jets of a CAD mesh at its creases, of a scan at its noise) and there its
+         * neighbouring tensors differ by far more than gamma0, which no refinement
+         * above hmin reconciles. Clamped, the lever and the hinge are certified with
+         * the defaults (they were not: stars at the creases stayed open) */
+        ss->ecap_hi = ss->hmin > 0 ? prm->r0 / ss->hmin : 0;
+        ss->ecap_lo = ss->hmax > 0 ? prm->r0 / ss->hmax : 0;
     }
     int complete = 0;
     anistar_mesh *done = NULL; /* the output built when no rule applied */

@@ -86,6 +86,28 @@ anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_fr
                        "mesher: the metric at (%.17g, %.17g, %.17g) is not finite and positive "
                        "definite",
                        p[0], p[1], p[2]);
+    /* design: hmin and hmax bound the metric itself (MMG's semantics): an eigenvalue e of
+     * F asks for edges of r0/e, so e is clamped to [r0/hmax, r0/hmin] */
+    if (ss->ecap_hi > 0 || ss->ecap_lo > 0) {
+        double e[3], u[9];
+        int changed = 0;
+        memcpy(u, mf->u, sizeof u);
+        for (int k = 0; k < 3; k++) {
+            e[k] = mf->e[k];
+            if (ss->ecap_hi > 0 && e[k] > ss->ecap_hi) {
+                e[k] = ss->ecap_hi;
+                changed = 1;
+            }
+            if (ss->ecap_lo > 0 && e[k] < ss->ecap_lo) {
+                e[k] = ss->ecap_lo;
+                changed = 1;
+            }
+        }
+        if (changed && as_metric_frame_from_eigen(mf, u, e) != 0)
+            return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+                           "mesher: the clamped metric at (%.17g, %.17g, %.17g) is invalid",
+                           p[0], p[1], p[2]);
+    }
     return ANISTAR_OK;
 }
 

@@ -69,6 +69,8 @@ typedef struct as_starset {
     int32_t nscomp;          /* components of the surface sample */
     double hmin, hmax;       /* the run's Euclidean size bounds in force (0: none; see
                                 as_mesher_params) */
+    double ecap_hi, ecap_lo; /* the eigenvalues of every site's F are clamped to
+                                [ecap_lo, ecap_hi] (0: no bound): r0/hmax and r0/hmin */
     double alpha;            /* the feature-size fraction (AS_FEATURE_ALPHA), times each
                                 site's ascale */
     double *fix;             /* points of S the final checks found the mesh missing (4 per

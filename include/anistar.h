@@ -220,13 +220,13 @@ typedef enum anistar_param {
                                    (every eigenvalue of F at most r0/hmin, at least r0/hmax
                                    with ANISTAR_PARAM_HMAX), and a facet whose longest
                                    edge is shorter gets no size, distortion, approximation
-                                   or shape refinement (the feature size, the topology rule
-                                   and consistency still apply; stats.facets_below_hmin
-                                   counts the facets it held beyond r0, rho0 or gamma0);
-                                   >= 0, 0 = automatic (default): the surface's resolution,
-                                   the floor of the local feature size (an eighth of a
-                                   triangle mesh's mean edge, about a voxel for an image,
-                                   1e-4 of the bounding radius for an implicit surface) */
+                                   or shape refinement (the feature size and consistency
+                                   still apply, and the topology rule except on triangle
+                                   meshes; stats.facets_below_hmin counts the facets it held
+                                   beyond r0, rho0 or gamma0); >= 0, 0 = automatic
+                                   (default): the surface's resolution (half a triangle
+                                   mesh's mean edge, about a voxel for an image, 1e-4 of
+                                   the bounding radius for an implicit surface) */
     ANISTAR_PARAM_HMAX          /* Euclidean size ceiling, as MMG's hmax: a facet whose
                                    longest edge is longer is refined (rule 1, counted in
                                    stats.insertions_hmax); >= 0, 0 = none (default) */

@@ -13,8 +13,9 @@
  *   ANISTAR_INCOMPLETE => a mesh, a stop reason that is not "done", one line saying why.
  * Anything else fails: in particular the 1e-9 trap (EINTERNAL, "a bug"), which the
  * topology rule reached on the lever, the hinge and the elephant before it stopped at hmin.
- * Cases marked `must` have to end certified: the smooth meshes, and the CAD hinge and lever
- * (certified since hmin clamps the metric).
+ * Cases marked `must` have to end certified: the smooth meshes, the CAD hinge, lever and
+ * fandisk and the scanned elephant (certified since hmin clamps the metric and a mesh's
+ * automatic hmin is half its mean edge); the bunny and the images are not yet.
  */
 #include <math.h>
 #include <stdio.h>
@@ -40,8 +41,8 @@ typedef struct dcase {
 static const dcase cases[] = {
     {"sphere_r0.5.off", 0, 2, 1, 1},  {"ellipsoid.off", 0, 2, 1, 1},
     {"knot1.off", 0, 0, 1, 1},        {"hinge.stl", 0, -8, 1, 1},
-    {"lever.stl", 0, -10, 1, 1},      {"elephant.off", 0, -4, 1, 0},
-    {"fandisk.off", 0, 2, 1, 0},      {"bunny00.off", 0, 2, 1, 0},
+    {"lever.stl", 0, -10, 1, 1},      {"elephant.off", 0, -4, 1, 1},
+    {"fandisk.off", 0, 2, 1, 1},      {"bunny00.off", 0, 2, 1, 0},
     {"skull_2.9.inr", 1, 0, 0, 0},    {"brain_t1.mhd", 1, 0, 0, 0},
     {"liver_labels_half.inr", 1, 0, 0, 0},
 };

@@ -224,9 +224,12 @@ typedef enum anistar_param {
                                    still apply, and the topology rule except on triangle
                                    meshes; stats.facets_below_hmin counts the facets it held
                                    beyond r0, rho0 or gamma0); >= 0, 0 = automatic
-                                   (default): the surface's resolution (half a triangle
-                                   mesh's mean edge, about a voxel for an image, 1e-4 of
-                                   the bounding radius for an implicit surface) */
+                                   (default): the resolution of what the metric is made
+                                   from: half a triangle mesh's mean edge for a field
+                                   fitted to its vertices (curvature, sol); otherwise the
+                                   floor of the feature size (an eighth of the mean edge,
+                                   about a voxel for an image, 1e-4 of the bounding radius
+                                   for an implicit surface) */
     ANISTAR_PARAM_HMAX          /* Euclidean size ceiling, as MMG's hmax: a facet whose
                                    longest edge is longer is refined (rule 1, counted in
                                    stats.insertions_hmax); >= 0, 0 = none (default) */

@@ -955,17 +955,20 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
      * feature size: what keeps distortion refinement finite where a metric from data
      * jumps (the curvature of a triangle mesh across a crease) */
     if (s == ANISTAR_OK) {
-        /* design: the automatic hmin is the surface's resolution: for a triangle mesh half
-         * its mean edge, the scale below which its jets (fitted over 16 neighbours, about
-         * two edges around) see no curvature but the creases' and the noise's (the
-         * feature size's floor stays an eighth: thin parts are still resolved); for an
-         * image or an implicit function the floor of the feature size. With an eighth,
-         * the curvature metric asked for up to 64 times the input's density: the
-         * elephant's estimate was 101,912 vertices and the fandisk's 72,301, neither
-         * converging in 60 s; with half, both are certified (7,162 and 15,954 V) */
+        /* design: the automatic hmin is the resolution of what the metric is made from.
+         * A field fitted to a triangle mesh's vertices (curvature from jets over 16
+         * neighbours, about two edges around; a .sol) sees nothing below about half the
+         * mean edge but the creases and the noise: hmin is half the mean edge there.
+         * With an eighth, the curvature metric asked for up to 64 times the input's
+         * density: the elephant's estimate was 101,912 vertices and the fandisk's 72,301,
+         * neither converging in 60 s; with half, both are certified (7,162 and 15,104 V).
+         * Any other field (euclidean, shock, an expression's gradient or Hessian) is the
+         * user's own sizes: hmin is the floor of the feature size (an eighth of a mesh's
+         * mean edge, about a voxel, 1e-4 R), which also stays the floor of the feature
+         * rule and of the final checks: thin parts are still resolved */
         ss->hmin = prm->hmin > 0 ? prm->hmin
-                   : as_surface_is_mesh(ss->surf) ? 4 * ss->feat.floor_e
-                                                  : ss->feat.floor_e;
+                   : ss->field->blend ? 4 * ss->feat.floor_e
+                                      : ss->feat.floor_e;
         ss->hmax = prm->hmax > 0 ? prm->hmax : 0;
         /* design: and they bound the metric itself (as_starset_metric), as MMG's hmin and
          * hmax do: a field from data asks for sizes below the surface's resolution (the

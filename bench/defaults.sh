@@ -75,8 +75,6 @@ if [ "$part" = all ] || [ "$part" = recipes ]; then
     row "hinge (CAD)" "$data/hinge.stl" --metric euclidean --r0 2
     row "hinge (CAD, graded)" "$data/hinge.stl" --metric curvature,grad=2
     row "fandisk (CAD)" "$data/fandisk.off" --metric euclidean --r0 0.2
-    row "fandisk (CAD, hmin)" "$data/fandisk.off" --hmin 0.01
-    row "elephant (scan, hmin)" "$data/elephant.off" --hmin 0.011
     row "elephant (scan)" "$data/elephant.off" --metric euclidean --r0 1
     row "bunny (scan)" "$data/bunny00.off" --metric euclidean --r0 0.02
     row "brain (MRI)" "$data/brain_t1.nhdr" --iso 40 --metric euclidean --r0 6

@@ -789,8 +789,12 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
  * e_1 over the vertices (paper 5.4); sol:FILE reads one tensor per vertex of the input mesh (Medit
  * .sol; ANISTAR_EFORMAT when the count differs or a tensor is not positive definite).
  * rb defaults to the mean distance from a vertex to its K nearest vertices. The blended
- * field is continuous and defined off the surface too. sol:FILE on another kind of
- * surface, and degree, k or rb there, are ANISTAR_EINVAL. */
+ * field is continuous and defined off the surface too.
+ * On image surfaces curvature is blended the same way: the exact curvature tensors of the
+ * B-spline isosurface at the points where it crosses the edges of the lattice of voxel
+ * centers, rb defaulting to the mean distance from such a point to its 16 nearest (about
+ * a voxel and a half; rb=R sets it). sol:FILE on a surface that is not a triangle mesh,
+ * degree or k there, and rb on an implicit surface are ANISTAR_EINVAL. */
 ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
                                                     const anistar_surface *s, const char *spec,
                                                     anistar_metric **out);

@@ -15,7 +15,9 @@
  * topology rule reached on the lever, the hinge and the elephant before it stopped at hmin.
  * Cases marked `must` have to end certified: the smooth meshes, the CAD hinge, lever and
  * fandisk and the scanned elephant (certified since hmin clamps the metric and a mesh's
- * automatic hmin is half its mean edge); the bunny and the images are not yet.
+ * automatic hmin is half its mean edge), the skull and the liver (certified since the
+ * curvature of an image is blended over its lattice crossings, with two voxels as its
+ * automatic hmin); the bunny and the brain are not yet within the bound.
  */
 #include <math.h>
 #include <stdio.h>
@@ -43,8 +45,8 @@ static const dcase cases[] = {
     {"knot1.off", 0, 0, 1, 1},        {"hinge.stl", 0, -8, 1, 1},
     {"lever.stl", 0, -10, 1, 1},      {"elephant.off", 0, -4, 1, 1},
     {"fandisk.off", 0, 2, 1, 1},      {"bunny00.off", 0, 2, 1, 0},
-    {"skull_2.9.inr", 1, 0, 0, 0},    {"brain_t1.mhd", 1, 0, 0, 0},
-    {"liver_labels_half.inr", 1, 0, 0, 0},
+    {"skull_2.9.inr", 1, 0, 0, 1},    {"brain_t1.mhd", 1, 0, 0, 0},
+    {"liver_labels_half.inr", 1, 0, 0, 1},
 };
 #define NCASES (sizeof cases / sizeof cases[0])
 #define MAX_SECONDS 8.0

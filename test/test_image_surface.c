@@ -9,6 +9,11 @@
  *    bounding sphere, even sign-change counts along chords, the sampler finds components
  *    without leaking out, and where the head is cut by the image border the surface
  *    closes within two voxels beyond it;
+ *  - the lattice sample (as_image_surface_lattice): every crossing of S with the edges of
+ *    the voxel-center lattice, as many as Crofton's formula predicts for the sphere; the
+ *    blended curvature of an image (field.c): on the ball with voxel noise, tensors a
+ *    voxel apart are less distorted than the exact curvature's, and nearer the true
+ *    metric;
  *  - errors: iso outside the value range (ENOSURFACE), missing files (EIO), bad inside,
  *    NaN voxels, zero dimensions, an image path given to anistar_surface_read;
  *  - allocation failures (synthetic image and file).
@@ -16,6 +21,7 @@
 #include "test_util.h"
 
 #include "geom/linalg.h"
+#include "geom/metric.h"
 #include "io/image_io.h"
 #include "surface/bspline.h"
 #include "surface/field.h"
@@ -216,6 +222,109 @@ static int check_closed(anistar_context *ctx, const as_surface *s, double step, 
     }
     as_surface_sample_free(ctx, &smp);
     return met;
+}
+
+/* The exact curvature tensor at y (paper 5.2.2), as the field would give it unblended:
+ * e_i = max(eps, |k_i|)^power along the principal directions, e_n along the normal. */
+static void exact_curvature_tensor(anistar_context *ctx, const as_surface *s, const as_field *f,
+                                   const double y[3], double m[6]) {
+    as_surface_frame fr;
+    assert_int_equal(as_surface_frame_at(ctx, s, y, &fr), ANISTAR_OK);
+    double u[9] = {fr.d[0], fr.d[1], fr.d[2], fr.d[3], fr.d[4], fr.d[5], fr.n[0], fr.n[1], fr.n[2]};
+    double e[3] = {pow(fmax(f->eps, fabs(fr.k[0])), f->power),
+                   pow(fmax(f->eps, fabs(fr.k[1])), f->power), f->en};
+    as_field_tensor(u, e, m);
+}
+
+static void test_lattice_and_blend(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    double *vox = ball_voxels(), c[3];
+    ball_center(c);
+    size_t dims[3] = {BN, BN, BN};
+    as_surface *s;
+    assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, 1, &s),
+                     ANISTAR_OK);
+    /* every lattice crossing lies on the sphere; their number is Crofton's: a line family
+     * of spacing (a, b) meets a surface of area A with mean |n . axis| = 1/2 (a sphere)
+     * A / (2 a b) times on average */
+    double *xyz = NULL, voxel = 0;
+    size_t n = 0;
+    assert_int_equal(as_image_surface_lattice(ctx, s, &xyz, &n, &voxel), ANISTAR_OK);
+    assert_true(fabs(voxel - 0.8) < 1e-12);
+    const double *sp = b_spacing;
+    double want = 4 * PI * b_R * b_R / 2 *
+                  (1 / (sp[1] * sp[2]) + 1 / (sp[0] * sp[2]) + 1 / (sp[0] * sp[1]));
+    if (!(fabs((double)n / want - 1) < 0.03)) fail_msg("%zu lattice crossings, Crofton %g", n, want);
+    for (size_t i = 0; i < n; i++) assert_true(fabs(dist3(xyz + 3 * i, c) - b_R) < 1e-6 * b_R);
+    as_free(ctx, xyz, n * 3 * sizeof(double));
+    as_surface_free(s);
+    /* rb is an option of the curvature of images, not of implicit surfaces */
+    as_field *f = NULL;
+    assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, 1, &s),
+                     ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature,rb=2", &f), ANISTAR_OK);
+    assert_true(f->blend && fabs(as_blend_radius(f->blend) - 2) < 1e-12);
+    assert_true(fabs(f->hdata - 1.6) < 1e-12); /* two voxels */
+    as_field_free(f);
+    as_surface_free(s);
+    as_surface *im;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &im), ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(ctx, im, "curvature,rb=2", &f), ANISTAR_EINVAL);
+    as_surface_free(im);
+
+    /* the ball with voxel noise (uniform in +-0.3, against a gradient of 2R = 12 per unit:
+     * S moves by up to 0.025 units, 3% of a voxel): the exact curvature is much that of the
+     * noise; the blended one is smoother and nearer 1/R. Measured (seed 11): the mean
+     * distortion between tensors a voxel apart 2.17 exact, 1.05 blended; the mean
+     * distortion from the noise-free metric 2.08 exact, 1.19 blended (with +-1: 4.85 /
+     * 1.13 and 3.42 / 2.27: the blend averages |k| of the noise, a bias it cannot undo) */
+    tu_rng r = {11};
+    for (size_t i = 0; i < (size_t)BN * BN * BN; i++) vox[i] += tu_rng_range(&r, -0.3, 0.3);
+    assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, 1, &s),
+                     ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature,en=0.16666666666666666", &f),
+                     ANISTAR_OK);
+    assert_non_null(f->blend);
+    double g_ex = 0, g_bl = 0, t_ex = 0, t_bl = 0;
+    const int pairs = 200;
+    const double iso = 1 / (b_R * b_R), mt[6] = {iso, 0, 0, iso, 0, iso};
+    as_metric_frame ft;
+    assert_int_equal(as_metric_frame_init(&ft, mt), 0);
+    for (int i = 0; i < pairs; i++) {
+        double u[3], v[3], p[3], q[3], x[3], y[3];
+        rand_unit(&r, u);
+        rand_unit(&r, v);
+        for (int k = 0; k < 3; k++) p[k] = c[k] + b_R * u[k];
+        assert_int_equal(as_surface_project(ctx, s, p, x), ANISTAR_OK);
+        for (int k = 0; k < 3; k++) q[k] = x[k] + 0.8 * v[k]; /* a voxel away */
+        assert_int_equal(as_surface_project(ctx, s, q, y), ANISTAR_OK);
+        double ex[2][6], bl[2][6];
+        exact_curvature_tensor(ctx, s, f, x, ex[0]);
+        exact_curvature_tensor(ctx, s, f, y, ex[1]);
+        assert_int_equal(as_field_eval(ctx, f, x, bl[0]), ANISTAR_OK);
+        assert_int_equal(as_field_eval(ctx, f, y, bl[1]), ANISTAR_OK);
+        as_metric_frame a, b, a2, b2;
+        assert_int_equal(as_metric_frame_init(&a, ex[0]), 0);
+        assert_int_equal(as_metric_frame_init(&b, ex[1]), 0);
+        assert_int_equal(as_metric_frame_init(&a2, bl[0]), 0);
+        assert_int_equal(as_metric_frame_init(&b2, bl[1]), 0);
+        g_ex += as_metric_distortion(&a, &b) / pairs;
+        g_bl += as_metric_distortion(&a2, &b2) / pairs;
+        t_ex += as_metric_distortion(&a, &ft) / pairs;
+        t_bl += as_metric_distortion(&a2, &ft) / pairs;
+    }
+    print_message("noisy ball: mean distortion a voxel apart %.3f exact, %.3f blended; from "
+                  "the true metric %.3f exact, %.3f blended\n",
+                  g_ex, g_bl, t_ex, t_bl);
+    /* asserted: the blend removes at least 80% of the first excess over 1, 70% of the
+     * second */
+    assert_true(g_ex > 1.5 && g_bl - 1 < 0.2 * (g_ex - 1));
+    assert_true(t_ex > 1.5 && t_bl - 1 < 0.3 * (t_ex - 1));
+    as_field_free(f);
+    as_surface_free(s);
+    test_free(vox);
+    anistar_context_free(ctx);
 }
 
 static void test_skull(void **state) {
@@ -517,6 +626,7 @@ int main(void) {
         cmocka_unit_test(test_synthetic_ball), cmocka_unit_test(test_skull),
         cmocka_unit_test(test_brain),          cmocka_unit_test(test_errors_and_api),
         cmocka_unit_test(test_alloc_failures), cmocka_unit_test(test_otsu),
+        cmocka_unit_test(test_lattice_and_blend),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

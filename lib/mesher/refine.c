@@ -966,9 +966,10 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
          * user's own sizes: hmin is the floor of the feature size (an eighth of a mesh's
          * mean edge, about a voxel, 1e-4 R), which also stays the floor of the feature
          * rule and of the final checks: thin parts are still resolved */
-        ss->hmin = prm->hmin > 0 ? prm->hmin
-                   : ss->field->blend ? 4 * ss->feat.floor_e
-                                      : ss->feat.floor_e;
+        ss->hmin = prm->hmin > 0          ? prm->hmin
+                   : ss->field->hdata > 0 ? ss->field->hdata
+                   : ss->field->blend     ? 4 * ss->feat.floor_e
+                                          : ss->feat.floor_e;
         ss->hmax = prm->hmax > 0 ? prm->hmax : 0;
         /* design: and they bound the metric itself (as_starset_metric), as MMG's hmin and
          * hmax do: a field from data asks for sizes below the surface's resolution (the

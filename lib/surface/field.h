@@ -59,6 +59,11 @@
  *    their k nearest other vertices; option rb=R sets it.
  * A blended field is continuous everywhere, SPD, and defined off S too (it only looks at
  * distances to the vertices).
+ * Image surfaces: curvature is blended the same way over the points where S crosses the
+ * edges of the lattice of voxel centers (as_image_surface_lattice), each carrying the exact
+ * curvature tensor of the B-spline isosurface there (eps, power and e_n as for implicit
+ * surfaces); r_B = option rb or the mean distance to the AS_JET_K2 nearest such points.
+ * hdata is then two voxels (the smallest voxel edge doubled): the mesher's automatic hmin.
  *
  * A field keeps a pointer to its surface (not owned): the surface must outlive it.
  * A field is immutable after creation; evaluation is safe from several threads at once
@@ -116,7 +121,8 @@ typedef struct as_field_spec {
  * NAME=VALUE with a finite number; spaces around names and values are allowed.
  * Returns EINVAL for an unknown metric name or option, a repeated option, a bad value
  * (eps, en, h, lambda, power, rb > 0, phi >= 0, grad > 1, degree 2, 3 or 4, k an integer
- * >= 1; degree, k, rb and grad are for triangle-mesh surfaces) or a missing expression; EFORMAT for a
+ * >= 1; degree, k, rb and grad are for triangle-mesh surfaces, rb also for the curvature of
+ * images) or a missing expression; EFORMAT for a
  * malformed expression or unbalanced parentheses; ENOMEM. Messages name the culprit.
  */
 anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out);
@@ -146,7 +152,13 @@ struct anistar_metric {
     void *user;
     as_expr *expr;           /* gradient, hessian (owned) */
     double eps, power, phi, en;
-    as_blend *blend;         /* curvature and sol on triangle meshes (owned) */
+    as_blend *blend;         /* curvature and sol on triangle meshes, curvature on images
+                                (owned) */
+    double *bxyz;            /* images: the points the blend is over (owned, 3 * bn) */
+    size_t bn;
+    as_kdtree *bkd;          /* images: their kd-tree (owned) */
+    double hdata;            /* the resolution of the data the field is fitted to (the
+                                automatic hmin; 0: none, the field is the user's own) */
 };
 
 /* A field parsed from spec on surface s (which must outlive it). Computes the default e_n

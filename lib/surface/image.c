@@ -134,3 +134,108 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
     as_image_free(ctx, img);
     return st;
 }
+
+/* as_image_surface_lattice (surface.h). design: f at the lattice nodes, two z-layers at a
+ * time (the nodes of layer z and z + 1, (nx + 2)(ny + 2) values each), so memory stays
+ * O(nx ny) whatever the image; an edge whose ends have opposite signs (f >= 0 against
+ * f < 0, the sign convention of the sampler) holds a crossing, solved by
+ * as_surface_crossing between its ends. The points grow in a doubling array. */
+anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *s, double **xyz,
+                                        size_t *n, double *voxel) {
+    *xyz = NULL;
+    *n = 0;
+    if (!as_surface_is_image(s))
+        return as_fail(ctx, ANISTAR_EINVAL, "image lattice: not an image surface");
+    const as_image_surface *is = (const as_image_surface *)s;
+    const as_grid *g = as_bspline_grid(is->bs);
+    double vmin = INFINITY;
+    for (int c = 0; c < 3; c++) {
+        double l = sqrt(g->a[c] * g->a[c] + g->a[3 + c] * g->a[3 + c] + g->a[6 + c] * g->a[6 + c]);
+        vmin = fmin(vmin, l);
+    }
+    *voxel = vmin;
+    const long lx = (long)g->n[0] + 2, ly = (long)g->n[1] + 2, lz = (long)g->n[2] + 2;
+    const size_t layer = (size_t)lx * (size_t)ly;
+    double *val = as_alloc_array(ctx, 2 * layer, sizeof(double));
+    if (!val) return as_fail(ctx, ANISTAR_ENOMEM, "image lattice: out of memory");
+    size_t cap = 0, cnt = 0;
+    double *pts = NULL;
+    anistar_status st = ANISTAR_OK;
+#define LAT_NODE(i, j, k, out)                                                                 \
+    do {                                                                                       \
+        double v_[3] = {(double)(i) - 1, (double)(j) - 1, (double)(k) - 1};                    \
+        as_grid_voxel_to_world(g, v_, out);                                                    \
+    } while (0)
+    for (long k = 0; k < lz && !st; k++) {
+        double *cur = val + (size_t)(k & 1) * layer, *prev = val + (size_t)((k + 1) & 1) * layer;
+        for (long j = 0; j < ly; j++)
+            for (long i = 0; i < lx; i++) {
+                double p[3];
+                LAT_NODE(i, j, k, p);
+                double f = im_eval(s, p, 0, NULL, NULL);
+                if (!isfinite(f)) {
+                    st = as_fail(ctx, ANISTAR_EINVAL,
+                                 "image lattice: f is not finite at (%.17g, %.17g, %.17g)", p[0],
+                                 p[1], p[2]);
+                    break;
+                }
+                cur[(size_t)j * (size_t)lx + (size_t)i] = f;
+            }
+        for (long j = 0; j < ly && !st; j++)
+            for (long i = 0; i < lx && !st; i++) {
+                const double f0 = cur[(size_t)j * (size_t)lx + (size_t)i];
+                /* the edges to (i-1, j, k), (i, j-1, k), (i, j, k-1) */
+                for (int e = 0; e < 3 && !st; e++) {
+                    long a = i, b = j, c = k;
+                    double f1;
+                    if (e == 0) {
+                        if (i == 0) continue;
+                        a = i - 1;
+                        f1 = cur[(size_t)j * (size_t)lx + (size_t)a];
+                    } else if (e == 1) {
+                        if (j == 0) continue;
+                        b = j - 1;
+                        f1 = cur[(size_t)b * (size_t)lx + (size_t)i];
+                    } else {
+                        if (k == 0) continue;
+                        c = k - 1;
+                        f1 = prev[(size_t)j * (size_t)lx + (size_t)i];
+                    }
+                    if ((f0 >= 0) == (f1 >= 0)) continue;
+                    double p0[3], p1[3], x[3];
+                    LAT_NODE(i, j, k, p0);
+                    LAT_NODE(a, b, c, p1);
+                    int found = 0;
+                    if ((st = as_surface_crossing(ctx, s, p1, p0, p1, &found, x))) break;
+                    if (!found) continue;
+                    if (cnt == cap) {
+                        void *q = pts;
+                        if (as_grow(ctx, &q, &cap, cnt + 1, 3 * sizeof(double))) {
+                            st = as_fail(ctx, ANISTAR_ENOMEM, "image lattice: out of memory");
+                            break;
+                        }
+                        pts = q;
+                    }
+                    memcpy(pts + 3 * cnt, x, sizeof x);
+                    cnt++;
+                }
+            }
+    }
+#undef LAT_NODE
+    as_free(ctx, val, 2 * layer * sizeof(double));
+    if (!st && cnt < cap) { /* the caller frees exactly 3 * cnt doubles */
+        double *q = as_realloc(ctx, pts, cap * 3 * sizeof(double), cnt * 3 * sizeof(double));
+        if (cnt && !q) st = as_fail(ctx, ANISTAR_ENOMEM, "image lattice: out of memory");
+        else {
+            pts = q;
+            cap = cnt;
+        }
+    }
+    if (st) {
+        as_free(ctx, pts, cap * 3 * sizeof(double));
+        return st;
+    }
+    *xyz = pts;
+    *n = cnt;
+    return ANISTAR_OK;
+}

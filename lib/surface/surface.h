@@ -404,5 +404,17 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
                                            as_surface **out);
 /* 1 iff s is an image surface. */
 int as_surface_is_image(const as_surface *s);
+/*
+ * The points where S crosses the edges of the lattice of voxel centers (extended by one
+ * layer beyond the grid on every side, where the reconstruction is the background), each
+ * solved on its edge by as_surface_crossing: a sample of S at the image's own resolution,
+ * about 3 points per voxel face S crosses, in lattice order (deterministic). *xyz gets
+ * 3 * *n coordinates allocated with ctx's allocator (free with as_free, 3 * *n doubles;
+ * NULL when *n == 0). *voxel gets the smallest voxel edge (the length of A's shortest
+ * column). Returns OK, EINVAL (s not an image surface, f not finite on a lattice node),
+ * ENOMEM, or the errors of as_surface_crossing.
+ */
+anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *s, double **xyz,
+                                        size_t *n, double *voxel);
 
 #endif /* ANISTAR_SURFACE_H */

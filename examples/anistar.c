@@ -526,6 +526,7 @@ static const struct mesh_param {
     {"--max-stall", "max_stall", ANISTAR_PARAM_MAX_STALL, 1},
     {"--hmin", "hmin", ANISTAR_PARAM_HMIN, 0},
     {"--hmax", "hmax", ANISTAR_PARAM_HMAX, 0},
+    {"--aniso-cap", "aniso_cap", ANISTAR_PARAM_ANISO_CAP, 1},
 };
 #define NMESH_PARAMS (sizeof mesh_params / sizeof mesh_params[0])
 #define MAX_OUTPUTS 16
@@ -994,7 +995,7 @@ static const command commands[] = {
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
              "                 [--max-stall N] [--seed N] [--pick-tries N] [--hmin H]\n"
-             "                 [--hmax H] [--optimize]\n"
+             "                 [--hmax H] [--aniso-cap 0|1] [--optimize]\n"
              "                 [--quiet] [--sol FILE.sol] [--stats FILE.json]\n"
              "                 -o OUT [-o OUT2 ...]",
      cmd_mesh},
@@ -1022,7 +1023,9 @@ static void help(void) {
            "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"
            "inconsistent-facet count), seed 0, pick-tries 60, hmin 0 (automatic: the\n"
            "surface's resolution; facets with a shorter longest edge get no size,\n"
-           "distortion or shape refinement), hmax 0 (none; longer facets are refined).\n"
+           "distortion or shape refinement), hmax 0 (none; longer facets are refined),\n"
+           "aniso-cap 1 (the metric's small eigenvalues are raised where its frame turns\n"
+           "so fast that gamma0 would cut its facets; 0: the metric as given).\n"
            "Progress goes to stderr (--quiet: none); SIGINT or SIGTERM stops the run after\n"
            "the insertion in progress and writes every output, as a limit does (status 3);\n"
            "a second signal kills.\n\n"

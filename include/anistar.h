@@ -230,9 +230,16 @@ typedef enum anistar_param {
                                    floor of the feature size (an eighth of the mean edge,
                                    about a voxel for an image, 1e-4 of the bounding radius
                                    for an implicit surface) */
-    ANISTAR_PARAM_HMAX          /* Euclidean size ceiling, as MMG's hmax: a facet whose
+    ANISTAR_PARAM_HMAX,         /* Euclidean size ceiling, as MMG's hmax: a facet whose
                                    longest edge is longer is refined (rule 1, counted in
                                    stats.insertions_hmax); >= 0, 0 = none (default) */
+    ANISTAR_PARAM_ANISO_CAP     /* 1: the anisotropy that pays: where the metric's
+                                   eigenframe turns along S, each small eigenvalue of F is
+                                   raised until a facet of the size the metric asks for
+                                   keeps its vertices' distortion within gamma0 (the
+                                   elongation the distortion rule would undo is not asked
+                                   for; docs/algorithm.md); 0: the metric as the field
+                                   gives it; 0 or 1 (default 1) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */

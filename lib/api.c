@@ -284,6 +284,11 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
                            value);
         p->max_stall = (int64_t)value;
         return ANISTAR_OK;
+    case ANISTAR_PARAM_ANISO_CAP:
+        if (!(value == 0 || value == 1))
+            return as_fail(ctx, ANISTAR_EINVAL, "aniso_cap must be 0 or 1, got %g", value);
+        p->aniso_cap = (int32_t)value;
+        return ANISTAR_OK;
     case ANISTAR_PARAM_HMIN:
     case ANISTAR_PARAM_HMAX:
         if (!(isfinite(value) && value >= 0))
@@ -315,6 +320,7 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
     case ANISTAR_PARAM_MAX_STALL: *value = (double)p->max_stall; return ANISTAR_OK;
     case ANISTAR_PARAM_HMIN: *value = p->hmin; return ANISTAR_OK;
     case ANISTAR_PARAM_HMAX: *value = p->hmax; return ANISTAR_OK;
+    case ANISTAR_PARAM_ANISO_CAP: *value = p->aniso_cap; return ANISTAR_OK;
     }
     return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
 }

@@ -100,6 +100,7 @@ static void test_mesh_sphere(void **state) {
     assert_non_null(tu_json_value(js, "parameters"));
     assert_true(tu_json_number(js, "r0") == 0.3);
     assert_true(tu_json_number(js, "seed") == 7);
+    assert_true(tu_json_number(js, "aniso_cap") == 1); /* the default */
     assert_non_null(strstr(js, "\"euclidean\""));
     free(js);
 
@@ -127,11 +128,12 @@ static void test_mesh_limit(void **state) {
     (void)state;
     const char *off = "/tmp/anistar_clim_l.off", *json = "/tmp/anistar_clim_l.json";
     unlink(off), unlink(json);
-    /* the paper's torus at r0 0.5, gamma0 2: estimated at about 1,500 vertices (rule 1's
-     * distortion bound makes it 7,300), so a limit of 2,000 lets it start and stops it */
+    /* the paper's torus at r0 0.5, gamma0 2 without the anisotropy cap: estimated at about
+     * 1,500 vertices (rule 1's distortion bound makes it 7,300), so a limit of 2,000 lets
+     * it start and stops it */
     const char *args[] = {"mesh", "--builtin", "torus", "--metric", "curvature,eps=0.1", "--r0",
-                          "0.5", "--gamma0", "2", "--max-vertices", "2000", "--quiet", "-o", off,
-                          "--stats", json, NULL};
+                          "0.5", "--gamma0", "2", "--max-vertices", "2000", "--aniso-cap", "0",
+                          "--quiet", "-o", off, "--stats", json, NULL};
     run_result *r = test_malloc(sizeof *r);
     run(args, r);
     if (r->status != 3) fail_msg("exit %d, stderr '%s'", r->status, r->err);
@@ -150,6 +152,7 @@ static void test_mesh_limit(void **state) {
     assert_true(nv <= 2000);
     assert_true(tu_json_number(js, "r_max") > 0.5 || tu_json_number(js, "inconsistent_facets") > 0);
     assert_true(tu_json_number(js, "max_vertices") == 2000);
+    assert_true(tu_json_number(js, "aniso_cap") == 0);
     free(js);
     unlink(off), unlink(json);
     test_free(r);
@@ -172,11 +175,13 @@ static void test_usage_errors(void **state) {
         {S, "--max-vertices", "1.5", "-o", "/tmp/x.off", NULL},
         {S, "--metric", "bogus", "-o", "/tmp/x.off", NULL},
         {S, "--r0", NULL},
+        {S, "--aniso-cap", "2", "-o", "/tmp/x.off", NULL},
     };
 #undef S
     const char *msgs[] = {"unknown option", "-o",       "--r0",     "--r0",     "--gamma0",
                           "--rho0",         "--delta",  "--delta",  "--beta",
-                          "extension",      "--max-vertices",       "--metric", "needs a value"};
+                          "extension",      "--max-vertices",       "--metric", "needs a value",
+                          "--aniso-cap"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         run(cases[i], r);

@@ -29,6 +29,7 @@ typedef struct as_mesher_params {
                                0: automatic, the surface's resolution (as_feature floor_e) */
     double hmax;            /* Euclidean size ceiling: facets whose longest edge is longer are
                                refined (rule 1); 0: none */
+    int32_t aniso_cap;      /* 1: the rotation floor of the metric (starset.c) */
 } as_mesher_params;
 
 void as_mesher_params_default(as_mesher_params *p);

@@ -4,6 +4,8 @@
  */
 #include "mesher/starset.h"
 
+#include "surface/field.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -77,6 +79,149 @@ static void identity_frame(as_metric_frame *mf) {
     (void)as_metric_frame_from_eigen(mf, u, e);
 }
 
+/*
+ * The rotation floor of the metric at p (the anisotropy that pays, issue 13): out[k] is the
+ * smallest value the eigenvalue e_k of F may take, 0 for no floor.
+ * design: where the eigenframe of the field turns as one walks along S, two points at
+ * distance L have frames that differ by a rotation; a rotation by a small angle t that
+ * mixes eigendirections i and j (e_i < e_j) makes F_p F_q^-1 a shear of amount
+ * x = t (e_j / e_i - e_i / e_j), whose norm gamma satisfies gamma - 1 / gamma = x. The
+ * distortion rule leaves a facet alone only if x <= gamma0 - 1 / gamma0 =: G between its
+ * vertices. A facet of the size the metric asks for spans up to L = 2 r0 / e_k along the
+ * eigendirection k it extends in, so with w the rate of the rotation (angle per unit
+ * length, along u_k) the condition is 2 r0 w (e_j / e_i - e_i / e_j) / e_k <= G. A smaller
+ * e_i asks for an elongation that the distortion rule then undoes by cutting the facet (on
+ * the torus R 10, r 1 with the default curvature at r0 0.1 and gamma0 1.5, 99% of the
+ * facets were sized by distortion and the mesh had 3.6 times the paper's vertices): so e_i
+ * is raised to the least value meeting it, for every pair (i, j) and both tangent walking
+ * directions k. Walking along i itself (k = i) the condition reads
+ * e_i^2 >= e_j / (G / (2 r0 w) + 1 / e_j); along another direction, with
+ * c = G e_k / (2 r0 w), e_j / e_i <= (c + sqrt(c^2 + 4)) / 2.
+ * The rates w come from the field itself, by a difference: the eigenframe at
+ * q = proj(p + h u_k), h a twentieth of the facet span 2 r0 / e_k (at most 1e-2 R), each
+ * eigenvector of p matched to the nearest of q's; w_ij = |<u_i(p), v_j(q)>| / |q - p|.
+ * This sees every rotation of the frame in space: the normal turning with S (mixing e_n
+ * with a tangential eigenvalue) and the principal frame turning about the normal.
+ */
+/* x^T M y for the symmetric M (m11 m12 m13 m22 m23 m33) */
+static double as_sym3_quad(const double m[6], const double x[3], const double y[3]) {
+    return m[0] * x[0] * y[0] + m[3] * x[1] * y[1] + m[5] * x[2] * y[2] +
+           m[1] * (x[0] * y[1] + x[1] * y[0]) + m[2] * (x[0] * y[2] + x[2] * y[0]) +
+           m[4] * (x[1] * y[2] + x[2] * y[1]);
+}
+
+/* The tangent frame of M at a point of normal n: t[0], t[1] the eigenvectors of M restricted
+ * to the tangent plane (from the projection of a fixed axis where it is isotropic there, so
+ * the frame is continuous but at the isolated points where that projection vanishes) */
+static void tangent_frame(const double m[6], const double n[3], double t[2][3]) {
+    double a[3] = {1, 0, 0}, t0[3], t1[3];
+    if (fabs(n[0]) > 0.6) a[0] = 0, a[1] = 1;
+    double dn = a[0] * n[0] + a[1] * n[1] + a[2] * n[2];
+    for (int k = 0; k < 3; k++) t0[k] = a[k] - dn * n[k];
+    double l = sqrt(t0[0] * t0[0] + t0[1] * t0[1] + t0[2] * t0[2]);
+    for (int k = 0; k < 3; k++) t0[k] /= l;
+    t1[0] = n[1] * t0[2] - n[2] * t0[1];
+    t1[1] = n[2] * t0[0] - n[0] * t0[2];
+    t1[2] = n[0] * t0[1] - n[1] * t0[0];
+    double qa = as_sym3_quad(m, t0, t0), qb = as_sym3_quad(m, t0, t1), qc = as_sym3_quad(m, t1, t1);
+    double ang = 0.5 * atan2(2 * qb, qa - qc), cs = cos(ang), sn = sin(ang);
+    for (int k = 0; k < 3; k++) {
+        t[0][k] = cs * t0[k] + sn * t1[k];
+        t[1][k] = -sn * t0[k] + cs * t1[k];
+    }
+}
+
+/*
+ * The rotation floor of the metric at p (the anisotropy that pays, issue 13): raises, in
+ * place, M's eigenvalue along each tangent direction of its frame where the frame turns.
+ * design: in the frame (t0, t1, n) of M at p (t_k the eigenvectors of M restricted to the
+ * tangent plane, e_k = |F t_k|, e_n = |F n|), walking along t_k the frame turns; a turn by
+ * a small angle a that mixes t_k with a direction j of larger eigenvalue e_j makes
+ * F_p F_q^-1 a shear of amount x = a (e_j / e_k - e_k / e_j), whose norm gamma satisfies
+ * gamma - 1 / gamma = x. A facet of the size the metric asks for spans up to 2 r0 / e_k
+ * along t_k, so with w the rate of the turn the distortion rule leaves it alone only if
+ * 2 r0 w (e_j / e_k - e_k / e_j) / e_k <= gamma0 - 1 / gamma0 =: G. A smaller e_k asks
+ * for an elongation that the distortion rule then undoes by cutting the facet (on the
+ * torus R 10, r 1 with the default curvature at r0 0.1 and gamma0 1.5, 99% of the facets
+ * were sized by distortion and the mesh had 3.6 times the paper's vertices): so e_k is
+ * raised, by bisection, to the least value meeting it for both partners j (the other
+ * tangent direction and n), M <- M + (f_k^2 - e_k^2) t_k t_k^T (positive semidefinite
+ * added: M stays a metric, and the result is continuous where M and the rates are).
+ * The rates come from the field itself, by a difference: the frame at
+ * q = proj(p + h t_k), h a twentieth of the span (at most 1e-2 R), built the same way from
+ * M_q and the normal at q; w = |<t_k(p), s_j(q)>| / |q - p| with s_j(q) q's vector
+ * nearest p's j-th. This sees every turn in space: the normal turning with S, the
+ * principal frame turning about it. Where the tangent eigenvalues are equal (an eps-clamped
+ * flat region, an umbilic) the tangent pair has no distortion to bound (x = 0 for any
+ * rate), so the arbitrary frame there costs nothing.
+ */
+static anistar_status rotation_floor(as_starset *ss, const double p[3], double m[6]) {
+    int sing = 0;
+    double n[3];
+    anistar_status s = as_surface_normal_at(ss->ctx, ss->surf, p, n, &sing);
+    if (s != ANISTAR_OK || sing) return s;
+    double t[2][3];
+    tangent_frame(m, n, t);
+    const double *fr[3] = {t[0], t[1], n};
+    double e[3];
+    for (int k = 0; k < 3; k++) e[k] = sqrt(fmax(as_sym3_quad(m, fr[k], fr[k]), 0));
+    const double G = ss->rot_g, r0 = ss->rot_r0;
+    double raise[2] = {0, 0};
+    for (int k = 0; k < 2; k++) {
+        if (!(e[k] > 0)) continue;
+        const double *tk = t[k];
+        double h = fmin(0.1 * r0 / e[k], 1e-2 * ss->surf->radius);
+        double y[3] = {p[0] + h * tk[0], p[1] + h * tk[1], p[2] + h * tk[2]}, q[3];
+        s = as_surface_project(ss->ctx, ss->surf, y, q);
+        if (s == ANISTAR_ENOSURFACE) continue;
+        if (s != ANISTAR_OK) return s;
+        double d = sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                        (q[2] - p[2]) * (q[2] - p[2]));
+        if (!(d > 0)) continue;
+        double mq[6], nq[3], tq[2][3];
+        int sq = 0;
+        if ((s = as_field_eval(ss->ctx, ss->field, q, mq)) != ANISTAR_OK) return s;
+        if ((s = as_surface_normal_at(ss->ctx, ss->surf, q, nq, &sq)) != ANISTAR_OK) return s;
+        if (sq) continue;
+        tangent_frame(mq, nq, tq);
+        double f = e[k];
+        for (int j = 0; j < 3; j++) {
+            if (j == k || !(e[k] < e[j])) continue;
+            const double *sj = nq;
+            if (j < 2) { /* q's tangent vector nearest p's t_j */
+                double c0 = fabs(tq[0][0] * t[j][0] + tq[0][1] * t[j][1] + tq[0][2] * t[j][2]);
+                double c1 = fabs(tq[1][0] * t[j][0] + tq[1][1] * t[j][1] + tq[1][2] * t[j][2]);
+                sj = c0 >= c1 ? tq[0] : tq[1];
+            }
+            double w = fabs(tk[0] * sj[0] + tk[1] * sj[1] + tk[2] * sj[2]) / d;
+            if (!(w > 0) || !isfinite(w)) continue;
+            const double ej = e[j];
+#define XOF(v) (2 * r0 * w * (ej / (v) - (v) / ej) / (v))
+            if (!(XOF(f) > G)) continue;
+            double lo = f, hi = ej;
+            for (int it = 0; it < 40; it++) {
+                double mid = 0.5 * (lo + hi);
+                if (XOF(mid) > G) lo = mid;
+                else hi = mid;
+            }
+#undef XOF
+            f = hi;
+        }
+        if (f > e[k]) raise[k] = f * f - e[k] * e[k];
+    }
+    for (int k = 0; k < 2; k++) {
+        if (!(raise[k] > 0)) continue;
+        const double *tk = t[k];
+        m[0] += raise[k] * tk[0] * tk[0];
+        m[1] += raise[k] * tk[0] * tk[1];
+        m[2] += raise[k] * tk[0] * tk[2];
+        m[3] += raise[k] * tk[1] * tk[1];
+        m[4] += raise[k] * tk[1] * tk[2];
+        m[5] += raise[k] * tk[2] * tk[2];
+    }
+    return ANISTAR_OK;
+}
+
 anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf) {
     double m[6];
     anistar_status s = as_field_eval(ss->ctx, ss->field, p, m);
@@ -106,6 +251,19 @@ anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_fr
         if (changed && as_metric_frame_from_eigen(mf, u, e) != 0)
             return as_fail(ss->ctx, ANISTAR_EINTERNAL,
                            "mesher: the clamped metric at (%.17g, %.17g, %.17g) is invalid",
+                           p[0], p[1], p[2]);
+    }
+    /* design: the rotation floor after the clamp: it compares the eigenvalues the mesher
+     * will use (a normal eigenvalue above r0/hmin would ask for floors the clamp then
+     * undoes), and it raises an eigenvalue at most to a larger one, so the clamp holds */
+    if (ss->rot_g > 0) {
+        double m2[6];
+        memcpy(m2, mf->m, sizeof m2);
+        anistar_status sr = rotation_floor(ss, p, m2);
+        if (sr != ANISTAR_OK) return sr;
+        if (memcmp(m2, mf->m, sizeof m2) != 0 && as_metric_frame_init(mf, m2) != 0)
+            return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+                           "mesher: the metric raised at (%.17g, %.17g, %.17g) is invalid",
                            p[0], p[1], p[2]);
     }
     return ANISTAR_OK;

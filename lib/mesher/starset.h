@@ -71,6 +71,8 @@ typedef struct as_starset {
                                 as_mesher_params) */
     double ecap_hi, ecap_lo; /* the eigenvalues of every site's F are clamped to
                                 [ecap_lo, ecap_hi] (0: no bound): r0/hmax and r0/hmin */
+    double rot_r0, rot_g;    /* the rotation cap (as_starset_metric): r0 and gamma0 - 1;
+                                rot_g 0: off */
     double alpha;            /* the feature-size fraction (AS_FEATURE_ALPHA), times each
                                 site's ascale */
     double *fix;             /* points of S the final checks found the mesh missing (4 per

@@ -151,7 +151,7 @@ if has table1; then
             --aniso-cap "$cap"
         va=$v ea=$err ta=$t sa=$(status) pa=
         [ "$rc" = 0 ] && pa=$(piece t1a $R)
-        [ "$R" = 50 ] && [ "$cap" = 1 ] && [ "$rc" = 0 ] && cp "$tmp/t1a.ply" "$tmp/fig9.ply" && rc9=0
+        [ "$R" = 50 ] && [ "$cap" = 1 ] && [ "$rc" = 0 ] && cp "$tmp/t1a.off" "$tmp/fig9.off" && rc9=0
         :
         run t1i --builtin torus,R=$R,r=1 --metric euclidean --approx 0.001 --r0 1 --gamma0 1.8
         vi=$v ei=$err ti=$t si=$(status) pi=
@@ -192,11 +192,27 @@ if has fig8; then
 fi
 if has fig9; then
     echo
-    echo "### Fig. 9: the torus R 50"
+    echo "### Fig. 9: a piece of the torus R 50"
     echo
     if [ "${rc9:-1}" = 0 ]; then
-        rc=0
-        render fig9 paper_fig9_torus50 0,60
+        # the triangles whose three vertices lie within 0 <= atan2(y, x) <= 4 / R (a length
+        # 4, four tube radii, along the big circle), vertices renumbered; coloured by the
+        # triangles' aspect ratio (an OFF carries no tensors)
+        awk 'BEGIN { lim = 4 / 50 }
+            /^#/ || NF == 0 { next }
+            st == 0 { st = 1; next }
+            st == 1 { nv = $1; nf = $2; st = 2; next }
+            st == 2 { x[n] = $1; y[n] = $2; z[n] = $3; a = atan2($2, $1);
+                      keep[n] = (a >= 0 && a <= lim); n++; if (n == nv) st = 3; next }
+            st == 3 && $1 == 3 { if (keep[$2] && keep[$3] && keep[$4]) { t[m++] = $2 " " $3 " " $4 } }
+            END { k = 0; for (i = 0; i < nv; i++) if (keep[i]) id[i] = k++;
+                  print "OFF"; print k, m, 0
+                  for (i = 0; i < nv; i++) if (keep[i]) print x[i], y[i], z[i]
+                  for (j = 0; j < m; j++) { split(t[j], v, " "); print 3, id[v[1]], id[v[2]], id[v[3]] } }' \
+            "$tmp/fig9.off" >"$tmp/piece.off"
+        "$tool" render "$tmp/piece.off" -o "$imgdir/paper_fig9_torus50.png" --color quality \
+            --size 800x600 --view 0,35 >/dev/null 2>&1 &&
+            echo "![paper_fig9_torus50]($(basename "$imgdir")/paper_fig9_torus50.png)"
     else
         echo "Not rendered: Table 1's R = 50 mesh did not finish within $maxs s (or table1 was not run)."
     fi

@@ -238,8 +238,9 @@ typedef enum anistar_param {
                                    raised until a facet of the size the metric asks for
                                    keeps its vertices' distortion within gamma0 (the
                                    elongation the distortion rule would undo is not asked
-                                   for; docs/algorithm.md); 0: the metric as the field
-                                   gives it; 0 or 1 (default 1) */
+                                   for; docs/algorithm.md); no effect on triangle-mesh
+                                   surfaces (their normals are piecewise); 0: the metric
+                                   as the field gives it; 0 or 1 (default 1) */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */

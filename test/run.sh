@@ -11,7 +11,7 @@ total_pass=0
 total_fail=0
 failed_progs=""
 list=""
-for first in test_e2e test_mesher test_optimize test_predicates; do
+for first in test_defaults_image test_defaults test_e2e test_mesher test_optimize test_predicates; do
     [ -x "$build/test/$first" ] && list="$list $build/test/$first"
 done
 for t in "$build"/test/test_*; do

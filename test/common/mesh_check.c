@@ -12,6 +12,7 @@
 #include "test_util.h"
 
 #include "geom/del3.h"
+#include "geom/kdtree.h"
 #include "geom/metric.h"
 
 void mc_report_init(mc_report *r) {
@@ -20,6 +21,13 @@ void mc_report_init(mc_report *r) {
 
 /* Count a violation; keep the first description. */
 static void mc_fail(mc_report *r, const char *fmt, ...) {
+    if (getenv("MC_VERBOSE")) {
+        va_list aq;
+        va_start(aq, fmt);
+        vfprintf(stderr, fmt, aq);
+        fputc(10, stderr);
+        va_end(aq);
+    }
     if (r->failures++ == 0) {
         va_list ap;
         va_start(ap, fmt);
@@ -270,23 +278,47 @@ typedef struct star_work {
     size_t cap_found;
     double *balls;        /* 4 per tet around the vertex: circumcenter, squared radius */
     size_t cap_balls;
+    as_kdtree *kd;        /* the output vertices, by global id (candidates by box) */
+    as_idlist ids;        /* a box query's result */
+    int64_t *mark;        /* per point: the vertex whose selection holds it */
 } star_work;
 
-/* Rebuild i's triangulation from the extra sites and the k nearest output vertices.
- * Returns i's del3 vertex, or -1 on failure (reported). */
+/* The points in the box of the M-ball of radius r around x (a superset of the ball),
+ * into w->ids. */
+static void ball_candidates(anistar_context *ctx, star_work *w, const as_metric_frame *mf,
+                            const double x[3], double r) {
+    double h[3], lo[3], hi[3];
+    as_metric_ellipsoid_box(mf, r * (1 + 1e-9), h);
+    for (int k = 0; k < 3; k++) {
+        lo[k] = x[k] - h[k];
+        hi[k] = x[k] + h[k];
+    }
+    assert_int_equal(as_kdtree_box_any(ctx, w->kd, lo, hi, 0, &w->ids), ANISTAR_OK);
+}
+
+/* Squared M distance from point j (global id: extra sites, then output vertices) to
+ * yi = F x_i. */
+static double mdist2(const as_metric_frame *mf, const star_work *w, size_t j,
+                     const double yi[3]) {
+    double y[3], e[3];
+    as_metric_apply(mf, w->pts + 3 * j, y);
+    sub3(y, yi, e);
+    return dot3(e, e);
+}
+
+
+
+/* Rebuild i's triangulation from the k selected points w->order[0..k) (global ids: the
+ * extra sites, then the output vertices). Returns i's del3 vertex, or -1 on failure
+ * (reported). */
 static int32_t rebuild(anistar_context *ctx, star_work *w, int32_t nextra, size_t k, size_t i,
                        const as_metric_frame *mf, as_del3 *d, mc_report *r) {
-    int32_t n = 0;
-    for (int32_t e = 0; e < nextra; e++, n++) {
-        memcpy(w->sel + 3 * (size_t)n, w->pts + 3 * (size_t)e, 3 * sizeof(double));
-        w->gid[n] = e;
-    }
-    int32_t me = -1;
+    int32_t n = 0, me = -1;
     for (size_t q = 0; q < k; q++, n++) {
         int32_t j = w->order[q];
-        if ((size_t)j == i) me = n;
-        memcpy(w->sel + 3 * (size_t)n, w->pts + 3 * (size_t)(nextra + j), 3 * sizeof(double));
-        w->gid[n] = nextra + j;
+        if (j == nextra + (int32_t)i) me = n;
+        memcpy(w->sel + 3 * (size_t)n, w->pts + 3 * (size_t)j, 3 * sizeof(double));
+        w->gid[n] = j;
     }
     as_del3_reset(d);
     anistar_status st = as_del3_insert_points(d, w->sel, w->gid, n, mf, w->vx, NULL);
@@ -309,18 +341,41 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         mc_fail(r, "vertex %zu: tensor not positive definite", i);
         return;
     }
-    size_t nv = m->nv;
+    const size_t nv = (size_t)w->npts; /* every point: the extra sites and the vertices */
     double yi[3];
     as_metric_apply(&mf, m->xyz + 3 * i, yi);
-    for (size_t j = 0; j < nv; j++) {
-        double y[3], e[3];
-        as_metric_apply(&mf, m->xyz + 3 * j, y);
-        sub3(y, yi, e);
-        w->dist2[j] = dot3(e, e);
-        w->order[j] = (int32_t)j;
+    const double *xi = m->xyz + 3 * i;
+    /* every extra site (the box corners and the poles bound the balls: without them the
+     * balls toward the far side reach across the whole mesh), then the 48 M-nearest
+     * vertices: the 48 Euclidean-nearest are within M distance ub, so the box of the
+     * M-ball of radius ub holds the 48 M-nearest */
+    const size_t nvert = m->nv, kv = nvert < 48 ? nvert : 48;
+    size_t k = (size_t)nextra + kv;
+    {
+        for (int32_t e = 0; e < nextra; e++) {
+            w->order[e] = e;
+            w->mark[e] = (int64_t)i;
+        }
+        int32_t kid[48];
+        double kd2[48], ub = 0;
+        size_t got = as_kdtree_knn(w->kd, xi, kv, kid, kd2);
+        assert_int_equal(got, kv);
+        for (size_t q = 0; q < got; q++) {
+            double d2 = mdist2(&mf, w, (size_t)kid[q], yi);
+            if (d2 > ub) ub = d2;
+        }
+        ball_candidates(ctx, w, &mf, xi, sqrt(ub));
+        size_t nc = 0;
+        int32_t *cand = w->order + nextra;
+        for (size_t q = 0; q < w->ids.n; q++) {
+            int32_t j = w->ids.ids[q];
+            w->dist2[j] = mdist2(&mf, w, (size_t)j, yi);
+            cand[nc++] = j;
+        }
+        assert_true(nc >= kv);
+        select_k(cand, w->dist2, nc, kv);
+        for (size_t q = 0; q < kv; q++) w->mark[cand[q]] = (int64_t)i;
     }
-    size_t k = nv < 48 ? nv : 48;
-    select_k(w->order, w->dist2, nv, k);
     int32_t v = rebuild(ctx, w, nextra, k, i, &mf, d, r);
     if (v < 0) return;
     for (;;) {
@@ -329,7 +384,8 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             break;
         }
         /* certificate: no vertex left out lies in (or on) the circumball of a tet around
-         * v; a vertex beyond 2 rho_max of v cannot, the others are tested one by one */
+         * v; a vertex beyond 2 rho_max of v cannot, the others (found by box) are tested
+         * one by one */
         if (as_del3_vertex_tets(d, v, buf) != ANISTAR_OK) {
             mc_fail(r, "vertex %zu: %s", i, anistar_last_error(ctx));
             return;
@@ -353,28 +409,39 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             if (4 * c[3] > reach) reach = 4 * c[3];
         }
         if (!bounded) {
-            k = 2 * k < nv ? 2 * k : nv;
-            select_k(w->order, w->dist2, nv, k);
+            /* twice as many vertices: the nearest of those left out, by a scan (rare: a
+             * vertex on the hull of its subset) */
+            size_t nk = 2 * k < nv ? 2 * k : nv, nl = 0;
+            for (size_t j = 0; j < nv; j++)
+                if (w->mark[j] != (int64_t)i) {
+                    w->dist2[j] = mdist2(&mf, w, j, yi);
+                    w->order[k + nl++] = (int32_t)j;
+                }
+            select_k(w->order + k, w->dist2, nl, nk - k);
+            for (size_t q = k; q < nk; q++) w->mark[w->order[q]] = (int64_t)i;
+            k = nk;
             v = rebuild(ctx, w, nextra, k, i, &mf, d, r);
             if (v < 0) return;
             continue;
         }
-        /* the vertices left out that lie in (or on) a ball move to the selected prefix
-         * (slack 1e-9 for the rounding of the circumcenters and distances) and are
-         * inserted: the triangulation is the same as a rebuild with them (Delaunay with
-         * symbolic perturbation is unique), then the certificate is checked again */
+        /* the vertices left out that lie in (or on) a ball join the selection (slack 1e-9
+         * for the rounding of the circumcenters and distances) and are inserted: the
+         * triangulation is the same as a rebuild with them (Delaunay with symbolic
+         * perturbation is unique), then the certificate is checked again */
         size_t nviol = 0;
-        for (size_t q = k; q < nv; q++) {
-            int32_t j = w->order[q];
-            if (w->dist2[j] > reach * (1 + 1e-9)) continue;
+        ball_candidates(ctx, w, &mf, xi, sqrt(reach));
+        for (size_t q = 0; q < w->ids.n; q++) {
+            int32_t j = w->ids.ids[q];
+            if (w->mark[j] == (int64_t)i) continue;
+            double d2 = mdist2(&mf, w, (size_t)j, yi);
+            if (d2 > reach * (1 + 1e-9)) continue;
             double y[3], e[3];
-            as_metric_apply(&mf, m->xyz + 3 * (size_t)j, y);
+            as_metric_apply(&mf, w->pts + 3 * (size_t)j, y);
             for (size_t b = 0; b < nb; b++) {
                 sub3(y, w->balls + 4 * b, e);
                 if (dot3(e, e) <= w->balls[4 * b + 3] * (1 + 1e-9)) {
-                    w->order[q] = w->order[k + nviol];
-                    w->order[k + nviol] = j;
-                    nviol++;
+                    w->order[k + nviol++] = j;
+                    w->mark[j] = (int64_t)i;
                     break;
                 }
             }
@@ -382,14 +449,14 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         if (nviol == 0) break;
         for (size_t q = k; q < k + nviol; q++) {
             int32_t j = w->order[q], vx;
-            int rc = as_del3_insert_frame(d, &mf, m->xyz + 3 * (size_t)j, nextra + j, &vx);
+            int rc = as_del3_insert_frame(d, &mf, w->pts + 3 * (size_t)j, j, &vx);
             if (rc != ANISTAR_OK) {
                 mc_fail(r, "vertex %zu: inserting vertex %d failed (%d)", i, (int)j, rc);
                 return;
             }
         }
         k += nviol;
-        if ((size_t)nextra + k > r->star_points_max) r->star_points_max = (size_t)nextra + k;
+        if (k > r->star_points_max) r->star_points_max = k;
     }
     r->stars_checked++;
     /* restricted facets of v: dual segment with one end inside S and the other outside */
@@ -487,8 +554,8 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     w.pts = xmalloc(3 * (size_t)w.npts * sizeof *w.pts);
     memcpy(w.pts, extra, 3 * (size_t)nextra * sizeof *w.pts);
     memcpy(w.pts + 3 * (size_t)nextra, m->xyz, 3 * nv * sizeof *w.pts);
-    w.dist2 = xmalloc(nv * sizeof *w.dist2);
-    w.order = xmalloc(nv * sizeof *w.order);
+    w.dist2 = xmalloc((size_t)w.npts * sizeof *w.dist2);
+    w.order = xmalloc((size_t)w.npts * sizeof *w.order);
     w.sel = xmalloc(3 * (size_t)w.npts * sizeof *w.sel);
     w.gid = xmalloc((size_t)w.npts * sizeof *w.gid);
     w.vx = xmalloc((size_t)w.npts * sizeof *w.vx);
@@ -496,6 +563,14 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     w.found = xmalloc(3 * w.cap_found * sizeof *w.found);
     w.cap_balls = 64;
     w.balls = xmalloc(4 * w.cap_balls * sizeof *w.balls);
+    w.kd = NULL;
+    int32_t *vid = xmalloc(nv * sizeof *vid);
+    for (size_t j = 0; j < nv; j++) vid[j] = nextra + (int32_t)j;
+    assert_int_equal(as_kdtree_build(ctx, m->xyz, vid, nv, &w.kd), ANISTAR_OK);
+    free(vid);
+    memset(&w.ids, 0, sizeof w.ids);
+    w.mark = xmalloc((size_t)w.npts * sizeof *w.mark);
+    for (int32_t j = 0; j < w.npts; j++) w.mark[j] = -1;
     /* output triangles as sorted global-id triples, sorted; vertex -> triangles (CSR) in
      * that order, so each vertex's list comes out sorted */
     int32_t *tris = xmalloc(3 * nt * sizeof *tris);
@@ -528,6 +603,9 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     free(fill);
     free(start);
     free(tris);
+    as_kdtree_free(ctx, w.kd);
+    as_idlist_free(ctx, &w.ids);
+    free(w.mark);
     free(w.balls);
     free(w.found);
     free(w.vx);

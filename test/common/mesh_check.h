@@ -34,7 +34,8 @@ typedef struct mc_limits {
 /* What the checks found. */
 typedef struct mc_report {
     size_t failures;        /* violations found (0: everything holds) */
-    char first[512];        /* the first violation, described */
+    char first[512];        /* the first violation, described (with MC_VERBOSE set in the
+                             * environment, every violation is printed to stderr) */
     double rho_max;         /* largest radius-edge ratio over facets x vertex metrics */
     double r_max;           /* largest surface circumradius r_v(tau) of a star facet */
     double gamma_max;       /* largest distortion between two vertices of a facet */

@@ -836,6 +836,102 @@ ANISTAR_API void anistar_metric_free(anistar_metric *m);
 
 /* ==== END SURFACES AND METRIC FIELDS ==== */
 
+/* ------------------------------------------------------------------------------------ */
+/* What a file holds                                                                      */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * What a user checks before meshing a file (the command line's `anistar info`): for a
+ * triangle mesh its counts, its topology (borders, non-manifold edges and vertices,
+ * components with their Euler characteristic and genus), an exact self-intersection test,
+ * its bounding box and edge lengths; for a 3D image its grid, its value range, Otsu's
+ * threshold and the connected components of the voxels inside an isovalue. The file is
+ * read by the same readers as anistar_surface_read and anistar_surface_from_image_file,
+ * but a mesh need not be closed or manifold here: saying what is wrong is the point. The
+ * caller owns the struct; every field is an output; nothing is kept.
+ */
+
+#define ANISTAR_INFO_COMPONENTS 16            /* components described one by one */
+#define ANISTAR_INFO_PAIRS 8                  /* intersecting triangle pairs listed */
+#define ANISTAR_INFO_MAX_INTERSECTIONS 10000  /* the intersection count stops there */
+
+/* One connected component of a triangle mesh (triangles joined through shared
+ * vertices). */
+typedef struct anistar_component_info {
+    size_t vertices, edges, triangles;
+    long long euler_characteristic; /* V - E + F */
+    int closed;                     /* every edge in exactly two triangles, every vertex
+                                       one fan of triangles, no repeated index */
+    int orientable;                 /* its triangles can be oriented consistently */
+    long long genus;                /* (2 - chi) / 2 when closed and orientable, else -1 */
+} anistar_component_info;
+
+typedef struct anistar_mesh_info {
+    size_t vertices;             /* as read */
+    size_t used_vertices;        /* vertices of at least one triangle */
+    size_t triangles;            /* as read (polygons split into fans) */
+    size_t edges;                /* distinct vertex pairs of a triangle */
+    size_t components;           /* connected components */
+    size_t border_edges;         /* edges of exactly one triangle */
+    size_t nonmanifold_edges;    /* edges of three or more triangles */
+    size_t nonmanifold_vertices; /* vertices whose triangles form more than one fan */
+    size_t degenerate_triangles; /* a repeated vertex index or three collinear points
+                                    (exactly); skipped by the intersection test */
+    size_t nonorientable_components;
+    int closed_manifold;         /* no border or non-manifold edge or vertex, no repeated
+                                    index */
+    long long euler_characteristic; /* V - E + F over the whole mesh */
+    /* Pairs of triangles whose closed point sets meet other than in the vertices or the
+     * edge that their indices share (a touch at one point counts, so does a duplicated
+     * triangle), decided exactly; counting stops at ANISTAR_INFO_MAX_INTERSECTIONS
+     * (self_intersections_capped = 1). The first pairs_listed pairs (i < j, 0-based
+     * triangle numbers in file order, increasing) are in pairs. */
+    size_t self_intersections;
+    int self_intersections_capped;
+    size_t pairs_listed;
+    int32_t pairs[ANISTAR_INFO_PAIRS][2];
+    double bbox_min[3], bbox_max[3]; /* of the used vertices */
+    double edge_min, edge_mean, edge_max; /* Euclidean lengths of the distinct edges */
+    /* the first components_listed components, in the order of their first triangle */
+    size_t components_listed;
+    anistar_component_info component[ANISTAR_INFO_COMPONENTS];
+} anistar_mesh_info;
+
+/* Describe the triangle mesh in the file path (.off .obj .ply .stl .mesh, or any other
+ * format the mesh readers take). ANISTAR_EIO, ANISTAR_EFORMAT (the readers' errors, the
+ * message naming the file and the line), ANISTAR_EINVAL (NULL arguments, a coordinate
+ * beyond 1e40 in magnitude: the exact tests need it), ANISTAR_ENOMEM. */
+ANISTAR_API anistar_status anistar_mesh_file_info(anistar_context *ctx, const char *path,
+                                                  anistar_mesh_info *info);
+
+typedef struct anistar_image_info {
+    size_t dims[3];                  /* voxels per axis */
+    double spacing[3], origin[3];    /* origin: the world position of voxel (0,0,0) */
+    double direction[9];             /* row-major: direction[3r + c] = component r of
+                                        axis c's direction */
+    const char *voxel_type;          /* "uint8", "int16", "float32", ... (static) */
+    double bbox_min[3], bbox_max[3]; /* world box of the voxel centers */
+    double value_min, value_max;     /* of the finite voxels (NaN if none) */
+    size_t nonfinite;                /* NaN or infinite voxels */
+    double otsu;                     /* Otsu's threshold (anistar_image_otsu); NaN when
+                                        every finite voxel has the same value */
+    double iso;                      /* the isovalue used: the one given, else otsu */
+    int iso_given;                   /* 1: iso was given */
+    int inside;                      /* ANISTAR_INSIDE_GREATER or _LESS */
+    size_t voxels_inside;            /* voxels strictly beyond iso on the inside side */
+    size_t components;               /* connected components of those voxels, 6-connected
+                                        (voxels sharing a face); 0 when iso is NaN */
+} anistar_image_info;
+
+/* Describe the 3D image in the file path (.inr .nrrd .nhdr .mha .mhd) and the voxels
+ * inside the isovalue iso (NaN: Otsu's threshold), inside = ANISTAR_INSIDE_GREATER or
+ * ANISTAR_INSIDE_LESS. ANISTAR_EIO, ANISTAR_EFORMAT (the readers' errors), ANISTAR_EINVAL
+ * (NULL arguments, iso infinite, a bad inside), ANISTAR_ENOMEM (4 bytes per voxel are
+ * needed for the labelling). */
+ANISTAR_API anistar_status anistar_image_file_info(anistar_context *ctx, const char *path,
+                                                   double iso, int inside,
+                                                   anistar_image_info *info);
+
 #ifdef __cplusplus
 }
 #endif

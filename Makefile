@@ -168,14 +168,9 @@ demo: all
 
 # ---- install --------------------------------------------------------------------------
 
-$(BUILD)/anistar.pc: Makefile include/anistar.h
-	@mkdir -p $(dir $@)
-	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$(LIBDIR)' 'includedir=$(INCLUDEDIR)' '' \
-	    'Name: anistar' 'Description: anisotropic Delaunay meshes of surfaces' \
-	    'Version: $(VERSION)' 'Libs: -L$${libdir} -lanistar' 'Libs.private: -lm' \
-	    'Cflags: -I$${includedir}' > $@
-
-install: all $(BUILD)/anistar.pc
+# anistar.pc is written at install time from this install's own PREFIX, LIBDIR and
+# INCLUDEDIR (never a file left in build/ by an earlier make with another PREFIX).
+install: all
 	install -d $(DESTDIR)$(INCLUDEDIR) $(DESTDIR)$(LIBDIR) $(DESTDIR)$(BINDIR) \
 	    $(DESTDIR)$(PKGCONFIGDIR)
 	install -m 644 include/anistar.h $(DESTDIR)$(INCLUDEDIR)/anistar.h
@@ -183,7 +178,11 @@ install: all $(BUILD)/anistar.pc
 	install -m 755 $(SHARED_REAL) $(DESTDIR)$(LIBDIR)/libanistar.so.$(VERSION)
 	ln -sf libanistar.so.$(VERSION) $(DESTDIR)$(LIBDIR)/$(SONAME)
 	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libanistar.so
-	install -m 644 $(BUILD)/anistar.pc $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
+	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$(LIBDIR)' 'includedir=$(INCLUDEDIR)' '' \
+	    'Name: anistar' 'Description: anisotropic Delaunay meshes of surfaces' \
+	    'Version: $(VERSION)' 'Libs: -L$${libdir} -lanistar' 'Libs.private: -lm' \
+	    'Cflags: -I$${includedir}' > $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
+	chmod 644 $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
 	install -m 755 $(TOOL) $(DESTDIR)$(BINDIR)/anistar
 
 uninstall:

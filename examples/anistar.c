@@ -3,6 +3,7 @@
  * docs/cli.md). It parses options into API calls and nothing else.
  *
  *   anistar probe SURFACE [--metric SPEC] --at X,Y,Z
+ *   anistar info FILE [--json] [--iso V] [--inside greater|less]
  *   anistar render MESH -o OUT.png [options]
  *   anistar mesh SURFACE [options] -o OUT [-o OUT2 ...]
  *   anistar --help | --version
@@ -349,6 +350,256 @@ done:
     anistar_metric_free(m);
     anistar_surface_free(s);
     anistar_context_free(ctx);
+    return rc;
+}
+
+/* ---- info -------------------------------------------------------------------------- */
+
+/* A JSON number: %.17g, or null when not finite. */
+static void json_num(double x) {
+    if (isfinite(x)) printf("%.17g", x);
+    else printf("null");
+}
+
+static void json_num_array(const double *v, int n) {
+    putchar('[');
+    for (int i = 0; i < n; i++) {
+        if (i) printf(", ");
+        json_num(v[i]);
+    }
+    putchar(']');
+}
+
+static const char *yes_no(int b) { return b ? "yes" : "no"; }
+static const char *true_false(int b) { return b ? "true" : "false"; }
+
+static void info_mesh_json(const char *path, const anistar_mesh_info *mi) {
+    printf("{\n  \"file\": ");
+    json_string(path);
+    printf(",\n  \"kind\": \"mesh\",\n");
+    printf("  \"vertices\": %zu,\n  \"used_vertices\": %zu,\n  \"triangles\": %zu,\n"
+           "  \"edges\": %zu,\n  \"components\": %zu,\n",
+           mi->vertices, mi->used_vertices, mi->triangles, mi->edges, mi->components);
+    printf("  \"closed_manifold\": %s,\n  \"border_edges\": %zu,\n  \"nonmanifold_edges\": %zu,\n"
+           "  \"nonmanifold_vertices\": %zu,\n  \"degenerate_triangles\": %zu,\n"
+           "  \"nonorientable_components\": %zu,\n  \"euler_characteristic\": %lld,\n",
+           true_false(mi->closed_manifold), mi->border_edges, mi->nonmanifold_edges,
+           mi->nonmanifold_vertices, mi->degenerate_triangles, mi->nonorientable_components,
+           mi->euler_characteristic);
+    printf("  \"self_intersections\": {\"count\": %zu, \"capped\": %s, \"pairs\": [",
+           mi->self_intersections, true_false(mi->self_intersections_capped));
+    for (size_t i = 0; i < mi->pairs_listed; i++)
+        printf("%s[%ld, %ld]", i ? ", " : "", (long)mi->pairs[i][0], (long)mi->pairs[i][1]);
+    printf("]},\n  \"bounding_box\": {\"min\": ");
+    json_num_array(mi->bbox_min, 3);
+    printf(", \"max\": ");
+    json_num_array(mi->bbox_max, 3);
+    printf("},\n  \"edge_length\": {\"min\": ");
+    json_num(mi->edge_min);
+    printf(", \"mean\": ");
+    json_num(mi->edge_mean);
+    printf(", \"max\": ");
+    json_num(mi->edge_max);
+    printf("},\n  \"per_component\": [");
+    for (size_t c = 0; c < mi->components_listed; c++) {
+        const anistar_component_info *ci = &mi->component[c];
+        printf("%s\n    {\"vertices\": %zu, \"edges\": %zu, \"triangles\": %zu, "
+               "\"euler_characteristic\": %lld, \"closed\": %s, \"orientable\": %s, \"genus\": ",
+               c ? "," : "", ci->vertices, ci->edges, ci->triangles, ci->euler_characteristic,
+               true_false(ci->closed), true_false(ci->orientable));
+        if (ci->genus >= 0) printf("%lld}", ci->genus);
+        else printf("null}");
+    }
+    printf("%s]\n}\n", mi->components_listed ? "\n  " : "");
+}
+
+static void info_mesh_text(const char *path, const anistar_mesh_info *mi) {
+    printf("%s: triangle mesh\n", path);
+    printf("  vertices                   %zu (%zu in triangles)\n", mi->vertices,
+           mi->used_vertices);
+    printf("  triangles                  %zu\n", mi->triangles);
+    printf("  edges                      %zu\n", mi->edges);
+    printf("  components                 %zu\n", mi->components);
+    printf("  closed 2-manifold          %s\n", yes_no(mi->closed_manifold));
+    printf("  border edges               %zu\n", mi->border_edges);
+    printf("  non-manifold edges         %zu\n", mi->nonmanifold_edges);
+    printf("  non-manifold vertices      %zu\n", mi->nonmanifold_vertices);
+    printf("  degenerate triangles       %zu\n", mi->degenerate_triangles);
+    printf("  non-orientable components  %zu\n", mi->nonorientable_components);
+    printf("  Euler characteristic       %lld\n", mi->euler_characteristic);
+    printf("  self-intersections         %zu%s", mi->self_intersections,
+           mi->self_intersections_capped ? " or more (counting stopped)" : "");
+    for (size_t i = 0; i < mi->pairs_listed; i++)
+        printf("%s%ld-%ld", i ? ", " : ": triangles ", (long)mi->pairs[i][0],
+               (long)mi->pairs[i][1]);
+    printf("%s\n", mi->self_intersections > mi->pairs_listed ? ", ..." : "");
+    printf("  bounding box               [%g, %g, %g] - [%g, %g, %g]\n", mi->bbox_min[0],
+           mi->bbox_min[1], mi->bbox_min[2], mi->bbox_max[0], mi->bbox_max[1], mi->bbox_max[2]);
+    printf("  edge length                min %g, mean %g, max %g\n", mi->edge_min,
+           mi->edge_mean, mi->edge_max);
+    for (size_t c = 0; c < mi->components_listed; c++) {
+        const anistar_component_info *ci = &mi->component[c];
+        printf("  component %-4zu             %zu vertices, %zu triangles, Euler "
+               "characteristic %lld, %s, %s",
+               c + 1, ci->vertices, ci->triangles, ci->euler_characteristic,
+               ci->closed ? "closed" : "open or non-manifold",
+               ci->orientable ? "orientable" : "non-orientable");
+        if (ci->genus >= 0) printf(", genus %lld", ci->genus);
+        printf("\n");
+    }
+    if (mi->components > mi->components_listed)
+        printf("  (%zu more components)\n", mi->components - mi->components_listed);
+}
+
+static void info_image_json(const char *path, const anistar_image_info *ii) {
+    printf("{\n  \"file\": ");
+    json_string(path);
+    printf(",\n  \"kind\": \"image\",\n  \"dims\": [%zu, %zu, %zu],\n  \"voxel_type\": ",
+           ii->dims[0], ii->dims[1], ii->dims[2]);
+    json_string(ii->voxel_type);
+    printf(",\n  \"spacing\": ");
+    json_num_array(ii->spacing, 3);
+    printf(",\n  \"origin\": ");
+    json_num_array(ii->origin, 3);
+    printf(",\n  \"direction\": ");
+    json_num_array(ii->direction, 9);
+    printf(",\n  \"bounding_box\": {\"min\": ");
+    json_num_array(ii->bbox_min, 3);
+    printf(", \"max\": ");
+    json_num_array(ii->bbox_max, 3);
+    printf("},\n  \"value_range\": [");
+    json_num(ii->value_min);
+    printf(", ");
+    json_num(ii->value_max);
+    printf("],\n  \"nonfinite_voxels\": %zu,\n  \"otsu\": ", ii->nonfinite);
+    json_num(ii->otsu);
+    printf(",\n  \"iso\": ");
+    json_num(ii->iso);
+    printf(",\n  \"iso_source\": \"%s\",\n  \"inside\": \"%s\",\n", ii->iso_given ? "given" : "otsu",
+           ii->inside == ANISTAR_INSIDE_LESS ? "less" : "greater");
+    printf("  \"voxels_inside\": %zu,\n  \"components\": %zu,\n  \"connectivity\": 6\n}\n",
+           ii->voxels_inside, ii->components);
+}
+
+static void info_image_text(const char *path, const anistar_image_info *ii) {
+    printf("%s: 3D image\n", path);
+    printf("  dimensions                 %zu x %zu x %zu voxels (%s)\n", ii->dims[0],
+           ii->dims[1], ii->dims[2], ii->voxel_type);
+    printf("  spacing                    %g, %g, %g\n", ii->spacing[0], ii->spacing[1],
+           ii->spacing[2]);
+    printf("  origin                     %g, %g, %g\n", ii->origin[0], ii->origin[1],
+           ii->origin[2]);
+    printf("  bounding box               [%g, %g, %g] - [%g, %g, %g] (voxel centers)\n",
+           ii->bbox_min[0], ii->bbox_min[1], ii->bbox_min[2], ii->bbox_max[0], ii->bbox_max[1],
+           ii->bbox_max[2]);
+    printf("  values                     %g to %g", ii->value_min, ii->value_max);
+    if (ii->nonfinite) printf(" (%zu voxels NaN or infinite)", ii->nonfinite);
+    printf("\n  Otsu's threshold           %.17g\n", ii->otsu);
+    printf("  isovalue                   %.17g (%s), inside: values %s\n", ii->iso,
+           ii->iso_given ? "--iso" : "Otsu's threshold",
+           ii->inside == ANISTAR_INSIDE_LESS ? "less" : "greater");
+    printf("  voxels inside              %zu\n", ii->voxels_inside);
+    printf("  components                 %zu (of the voxels inside, 6-connected: sharing a "
+           "face)\n",
+           ii->components);
+}
+
+static int cmd_info(int argc, char **argv) {
+    const char *file = NULL;
+    int json = 0, has_iso = 0, inside = 0;
+    double iso = NAN;
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--json")) {
+            json = 1;
+        } else if (!strcmp(a, "--iso") || !strcmp(a, "--inside")) {
+            if (i + 1 >= argc) {
+                say("%s needs a value", a);
+                return EXIT_USAGE;
+            }
+            const char *v = argv[++i];
+            if (a[2] == 'i' && a[3] == 's') {
+                if (has_iso++) {
+                    say("--iso given twice");
+                    return EXIT_USAGE;
+                }
+                if (parse_numbers(v, &iso, 1)) {
+                    say("--iso expects a number, got '%s'", v);
+                    return EXIT_USAGE;
+                }
+            } else {
+                if (inside) {
+                    say("--inside given twice");
+                    return EXIT_USAGE;
+                }
+                if (!strcmp(v, "greater")) inside = ANISTAR_INSIDE_GREATER;
+                else if (!strcmp(v, "less")) inside = ANISTAR_INSIDE_LESS;
+                else {
+                    say("--inside expects greater or less, got '%s'", v);
+                    return EXIT_USAGE;
+                }
+            }
+        } else if (a[0] == '-' && a[1] != '\0') {
+            say("info: unknown option '%s' (try 'anistar --help')", a);
+            return EXIT_USAGE;
+        } else if (file) {
+            say("info: unexpected argument '%s' (only one FILE)", a);
+            return EXIT_USAGE;
+        } else {
+            file = a;
+        }
+    }
+    if (!file) {
+        say("info needs a FILE (a triangle mesh or a 3D image)");
+        return EXIT_USAGE;
+    }
+    int image = file_kind(file) == FILE_IMAGE;
+    if ((has_iso || inside) && !image) {
+        say("%s goes with an image FILE (.inr .nrrd .nhdr .mha .mhd)",
+            has_iso ? "--iso" : "--inside");
+        return EXIT_USAGE;
+    }
+    anistar_context *ctx = anistar_context_new(NULL);
+    if (!ctx) {
+        say("out of memory");
+        return EXIT_ERROR;
+    }
+    int rc = EXIT_OK;
+    if (image) {
+        anistar_image_info *ii = malloc(sizeof *ii);
+        if (!ii) {
+            say("out of memory");
+            rc = EXIT_ERROR;
+        } else if (anistar_image_file_info(ctx, file, iso,
+                                           inside ? inside : ANISTAR_INSIDE_GREATER, ii)) {
+            say("%s", anistar_last_error(ctx));
+            rc = EXIT_ERROR;
+        } else if (json) {
+            info_image_json(file, ii);
+        } else {
+            info_image_text(file, ii);
+        }
+        free(ii);
+    } else {
+        anistar_mesh_info *mi = malloc(sizeof *mi);
+        if (!mi) {
+            say("out of memory");
+            rc = EXIT_ERROR;
+        } else if (anistar_mesh_file_info(ctx, file, mi)) {
+            say("%s", anistar_last_error(ctx));
+            rc = EXIT_ERROR;
+        } else if (json) {
+            info_mesh_json(file, mi);
+        } else {
+            info_mesh_text(file, mi);
+        }
+        free(mi);
+    }
+    anistar_context_free(ctx);
+    if (rc == EXIT_OK && fflush(stdout) != 0) {
+        say("cannot write the output");
+        rc = EXIT_ERROR;
+    }
     return rc;
 }
 
@@ -992,6 +1243,7 @@ typedef struct command {
 
 static const command commands[] = {
     {"probe", "probe SURFACE [--metric SPEC] --at X,Y,Z", cmd_probe},
+    {"info", "info FILE [--json] [--iso V] [--inside greater|less]", cmd_info},
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
              "                 [--max-stall N] [--seed N] [--pick-tries N] [--hmin H]\n"
@@ -1014,12 +1266,18 @@ static void help(void) {
     printf("\nprobe prints JSON: f and its gradient at the point, the projection of the point\n"
            "on S, and there the normal, principal curvatures and directions, and the metric\n"
            "tensor (m11 m12 m13 m22 m23 m33; default metric: curvature).\n\n"
+           "info describes a triangle mesh (counts, borders, non-manifold edges and\n"
+           "vertices, components with Euler characteristic and genus, exact\n"
+           "self-intersections, bounding box, edge lengths) or a 3D image (grid, values,\n"
+           "Otsu's threshold, 6-connected components of the voxels inside --iso V, default\n"
+           "Otsu's); plain text, or JSON with --json.\n\n"
            "mesh builds an anisotropic Delaunay mesh of SURFACE for --metric (default\n"
            "curvature) and writes every -o OUT by extension (.off .obj .ply .stl .mesh .vtk\n"
            ".vtu); --sol writes the vertex tensors (Medit), --stats a JSON of statistics.\n"
            "Defaults: r0 0.1, gamma0 1.5, rho0 3, beta 2.5, delta 0.3, approx 0 (off),\n"
-           "max-vertices 1000000 (0: the hard limit 2000000; a run whose up-front estimate\n"
-           "exceeds it is refused, status 1), max-seconds 0 (no limit), max-stall 0\n"
+           "max-vertices 1000000 (0: the hard limit 2096128 = 2^21 - 1024, not 'no limit';\n"
+           "a run whose up-front estimate exceeds it is refused, status 1), max-seconds 0\n"
+           "(no limit), max-stall 0\n"
            "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"
            "inconsistent-facet count), seed 0, pick-tries 60, hmin 0 (automatic: the\n"
            "surface's resolution; facets with a shorter longest edge get no size,\n"

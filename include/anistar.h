@@ -3,6 +3,20 @@
  *
  * The one public header. Every public symbol starts with anistar_ or ANISTAR_.
  *
+ * anistar builds a triangle mesh of a surface S whose every vertex star is Delaunay for that
+ * vertex's own metric tensor. A program makes a context, a surface (an implicit function, a
+ * closed triangle mesh or an isosurface of a 3D image), a metric field on it and a mesher,
+ * runs the mesher and takes the output mesh; the sections below follow that order:
+ *   Version, Status, Context          what every program needs
+ *   Exact geometric predicates        orient3d and insphere, usable on their own
+ *   Metric tensors                    distortion, distance and square root of tensors
+ *   Surfaces                          what is meshed, and the queries on it
+ *   Metric fields                     the tensor at each point of a surface
+ *   Mesher                            parameters, progress, stopping, the run and its outcomes
+ *   Output mesh                       statistics, copy-out getters, writers
+ *   What a file holds                 a mesh's or an image's properties before meshing
+ *   Rendering meshes to PNG           pictures of meshes, without dependencies
+ *
  * Conventions (all functions):
  *  - Handles are opaque and come in create/free pairs; free functions accept NULL.
  *  - Fallible functions return an anistar_status (ANISTAR_OK == 0). On failure the
@@ -39,6 +53,12 @@ extern "C" {
 /* Version                                                                                */
 /* ------------------------------------------------------------------------------------ */
 
+/*
+ * The version this header belongs to (compile time) and the version of the library a
+ * program runs with (run time): compare the two to detect a mismatched shared library.
+ * Versions before 1.0 may change the API between minor versions.
+ */
+
 #define ANISTAR_VERSION_MAJOR 0
 #define ANISTAR_VERSION_MINOR 1
 #define ANISTAR_VERSION_PATCH 0
@@ -54,6 +74,13 @@ ANISTAR_API int anistar_version_number(void);
 /* ------------------------------------------------------------------------------------ */
 /* Status                                                                                 */
 /* ------------------------------------------------------------------------------------ */
+
+/*
+ * Every fallible function returns one of these statuses; ANISTAR_OK is 0, so
+ * `if (anistar_...(...))` tests for failure. ANISTAR_INCOMPLETE is the mesher's "stopped
+ * early, the partial mesh is valid"; every other nonzero status is an error whose one-line
+ * message is in the context (anistar_last_error).
+ */
 
 /* X-macro table: name, value, message. One table feeds the enum and the strings. */
 #define ANISTAR_STATUS_TABLE(X)                                                           \
@@ -82,6 +109,11 @@ ANISTAR_API const char *anistar_status_name(anistar_status st);
 /* ------------------------------------------------------------------------------------ */
 /* Context                                                                                */
 /* ------------------------------------------------------------------------------------ */
+
+/*
+ * A context owns the allocator every object made from it uses, and the message and status
+ * of the last failed call. Make one per thread of work; free it last.
+ */
 
 /*
  * A realloc-style allocator (as Lua's lua_Alloc):
@@ -163,409 +195,6 @@ ANISTAR_API anistar_status anistar_tensor_distance(anistar_context *ctx, const d
 /* The symmetric square root F = M^(1/2) (F^T F = M), as 6 doubles. */
 ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const double m[6],
                                                double f[6]);
-
-/* ==== MESHER (issue 6) ==== */
-
-/* ------------------------------------------------------------------------------------ */
-/* Mesher                                                                                 */
-/* ------------------------------------------------------------------------------------ */
-
-/*
- * The mesher (opaque) builds an anisotropic Delaunay mesh of a surface S for a metric
- * field (Boissonnat, Shi, Tournois, Yvinec): the star of every output vertex v is the
- * restricted Delaunay star of v for v's own metric M_v; every facet has radius-edge ratio
- * <= rho0 and surface circumradius < r0 in the metric of each of its three vertices, and
- * the metric distortion between its vertices is below gamma0. The mesher keeps pointers to
- * the surface and the metric (both must outlive it) and uses the context it was created
- * with for memory and messages. Two meshers on two contexts run in two threads at once.
- */
-typedef struct anistar_mesher anistar_mesher;
-typedef struct anistar_mesh anistar_mesh;
-typedef struct anistar_surface anistar_surface;
-typedef struct anistar_metric anistar_metric;
-
-/* Parameters of anistar_mesher_set (ranges checked; ANISTAR_EINVAL names the rule). */
-typedef enum anistar_param {
-    ANISTAR_PARAM_R0 = 0,       /* size bound: surface circumradius in vertex metrics; > 0
-                                   (default 0.1) */
-    ANISTAR_PARAM_GAMMA0,       /* distortion bound between a facet's vertex metrics; > 1
-                                   (default 1.5) */
-    ANISTAR_PARAM_RHO0,         /* radius-edge ratio bound; > 1 (default 3) */
-    ANISTAR_PARAM_BETA,         /* Pick_valid: "small" configurations; >= 1 (default 2.5) */
-    ANISTAR_PARAM_DELTA,        /* Pick_valid: picking ratio; in (0, 1) (default 0.3) */
-    ANISTAR_PARAM_APPROX,       /* approximation bound (distance facet-S); >= 0, 0 = off
-                                   (default 0) */
-    ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices, and
-                                   refuse at once (ANISTAR_EINVAL) a run whose up-front
-                                   estimate exceeds it; integer in [0, 2000000], 0 = the
-                                   hard limit 2000000 (default 1000000) */
-    ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
-                                   refinement; >= 0, 0 = no limit (default) */
-    ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
-                                   [0, 2^53] (default 0) */
-    ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer
-                                   in [1, 100000] (default 60) */
-    ANISTAR_PARAM_OPTIMIZE,     /* 1: vertex optimisation after a complete run (paper
-                                   6.2; moves vertices toward the area-weighted mean of
-                                   their facets' surface centers while every guarantee
-                                   holds and quality improves); 0 or 1 (default 0) */
-    ANISTAR_PARAM_MAX_STALL,    /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
-                                   ANISTAR_STOP_STALL) after this many consistency (rule 3)
-                                   insertions in a row without the inconsistent-facet count
-                                   they face reaching a new low (rule 3 runs when no other
-                                   rule applies: in a converging run that count falls to 0);
-                                   integer in [0, 2^53], 0 = automatic (default: the larger
-                                   of 50000 and 2 x the vertices at the last new low) */
-    ANISTAR_PARAM_HMIN,         /* Euclidean size floor, as MMG's hmin: the metric is clamped
-                                   (every eigenvalue of F at most r0/hmin, at least r0/hmax
-                                   with ANISTAR_PARAM_HMAX), and a facet whose longest
-                                   edge is shorter gets no size, distortion, approximation
-                                   or shape refinement (the feature size and consistency
-                                   still apply, and the topology rule except on triangle
-                                   meshes; stats.facets_below_hmin counts the facets it held
-                                   beyond r0, rho0 or gamma0); >= 0, 0 = automatic
-                                   (default): the resolution of what the metric is made
-                                   from: half a triangle mesh's mean edge for a field
-                                   fitted to its vertices (curvature, sol); otherwise the
-                                   floor of the feature size (an eighth of the mean edge,
-                                   about a voxel for an image, 1e-4 of the bounding radius
-                                   for an implicit surface) */
-    ANISTAR_PARAM_HMAX,         /* Euclidean size ceiling, as MMG's hmax: a facet whose
-                                   longest edge is longer is refined (rule 1, counted in
-                                   stats.insertions_hmax); >= 0, 0 = none (default) */
-    ANISTAR_PARAM_ANISO_CAP     /* 1: the anisotropy that pays: where the metric's
-                                   eigenframe turns along S, each small eigenvalue of F is
-                                   raised until a facet of the size the metric asks for
-                                   keeps its vertices' distortion within gamma0 (the
-                                   elongation the distortion rule would undo is not asked
-                                   for; docs/algorithm.md); no effect on triangle-mesh
-                                   surfaces (their normals are piecewise); 0: the metric
-                                   as the field gives it; 0 or 1 (default 1) */
-} anistar_param;
-
-/* A mesher for surface s and metric field m (both not owned). */
-ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anistar_surface *s,
-                                              const anistar_metric *m, anistar_mesher **out);
-ANISTAR_API void anistar_mesher_free(anistar_mesher *m);
-
-/* Set a parameter. ANISTAR_EINVAL (message in the mesher's context) for an unknown key or
- * a value out of range; the parameter then keeps its value. */
-ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param key,
-                                              double value);
-/* Read a parameter's current value. */
-ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_param key,
-                                              double *value);
-
-/* Progress callback: called during anistar_mesher_run every few hundred insertions and
- * at least every 0.25 s of refinement, with the number of vertices, of inconsistent
- * facets, and the seconds elapsed; return nonzero to cancel the run
- * (anistar_mesher_run then returns ANISTAR_ECANCELED and no mesh). The callback may call
- * anistar_mesher_get_progress for more (the estimate, the stall count). */
-typedef int (*anistar_progress_fn)(size_t vertices, size_t inconsistent, double seconds,
-                                   void *user);
-ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
-                                             void *user);
-
-/* The state of a run (anistar_mesher_get_progress): all outputs. */
-typedef struct anistar_progress {
-    size_t vertices;          /* surface vertices (sites) so far */
-    size_t inconsistent;      /* inconsistent facets now */
-    double seconds;           /* since the run started */
-    double estimate_vertices; /* up-front estimate of the final vertex count from the
-                                 metric and the sizing field (0 until it is made) */
-    double estimate_bytes;    /* ... and of the run's peak memory */
-    double eta_seconds;       /* estimated seconds left (< 0: unknown) */
-    uint64_t stalled;         /* consistency (rule 3) insertions since the inconsistent-
-                                 facet count they face last reached a new low */
-    uint64_t max_stall;       /* the stall budget in force (ANISTAR_PARAM_MAX_STALL) */
-} anistar_progress;
-
-/* Copy the state of the current (or last) run of m into *p: from the progress callback
- * (the thread running anistar_mesher_run) or after the run; not from another thread
- * while a run goes on. */
-ANISTAR_API anistar_status anistar_mesher_get_progress(const anistar_mesher *m,
-                                                       anistar_progress *p);
-
-/* Ask the current run of m to stop after the insertion in progress: anistar_mesher_run
- * then returns ANISTAR_INCOMPLETE with the mesh of the consistent facets so far (stop
- * reason ANISTAR_STOP_REQUESTED), as at a limit. During the vertex optimisation it ends
- * the optimisation between two moves: the mesh returned is then the certified mesh
- * optimised so far, still with ANISTAR_INCOMPLETE. Async-signal-safe and thread-safe: it
- * only sets a lock-free atomic flag, so a SIGINT handler or another thread may call it.
- * A call made while no run is going on makes the next run stop at its first check; each
- * run clears the flag when it ends. */
-ANISTAR_API void anistar_mesher_stop(anistar_mesher *m);
-
-/* Why a run ended: anistar_mesh_stats.stop_reason. */
-typedef enum anistar_stop_reason {
-    ANISTAR_STOP_DONE = 0,         /* refinement finished and the mesh is certified
-                                      (ANISTAR_OK) */
-    ANISTAR_STOP_MAX_VERTICES = 1, /* ANISTAR_PARAM_MAX_VERTICES reached */
-    ANISTAR_STOP_MAX_SECONDS = 2,  /* ANISTAR_PARAM_MAX_SECONDS reached */
-    ANISTAR_STOP_STALL = 3,        /* the inconsistent-facet count reached no new low for
-                                      ANISTAR_PARAM_MAX_STALL insertions */
-    ANISTAR_STOP_REQUESTED = 4,    /* anistar_mesher_stop */
-    ANISTAR_STOP_UNCERTIFIED = 5   /* no rule applies any more, but the mesh fails one of
-                                      the final checks of anistar_mesher_run (the message
-                                      names the check and the place) */
-} anistar_stop_reason;
-
-/* The reason's name: "done", "max_vertices", "max_seconds", "stall", "requested",
- * "uncertified"; "unknown" otherwise. Static strings. */
-ANISTAR_API const char *anistar_stop_reason_name(int reason);
-
-/*
- * Run the mesher. The three outcomes, and what each guarantees:
- *
- * ANISTAR_OK — a certified mesh: non-empty; every restricted facet consistent (in the
- *   surface star of each of its three vertices); every vertex star one closed fan; the
- *   mesh a closed, oriented (outward), 2-manifold triangulation; one mesh component for
- *   each connected component of S that the surface sample found, and no component
- *   bridging two of them; for a triangle-mesh surface, each component's Euler
- *   characteristic equal to that of the input component it covers. Every facet then has
- *   surface circumradius < r0, radius-edge ratio <= rho0 and distortion < gamma0 in the
- *   metric of each of its three vertices (and meets approx when set).
- * ANISTAR_INCOMPLETE — *out holds the consistent facets only (its statistics count the
- *   others; it need not be closed) and anistar_last_error says why: a limit
- *   (max_vertices, max_seconds), a stall (max_stall), anistar_mesher_stop, or a final
- *   check that failed (stop reason ANISTAR_STOP_UNCERTIFIED: e.g. a component whose
- *   Euler characteristic differs from the input's, named with a point on it).
- * An error — *out is NULL: ANISTAR_EINVAL for a metric that is not finite and positive
- *   definite at a point of S (the message names the point), or a run refused at once
- *   because its estimated vertex count exceeds max_vertices (the message gives the
- *   estimate); ANISTAR_ENOSURFACE, surface errors; ANISTAR_ENOMEM; ANISTAR_ECANCELED
- *   (the progress callback returned nonzero); ANISTAR_EINTERNAL for a broken invariant
- *   (e.g. a refinement point within a relative 1e-9 of an existing site, which would
- *   otherwise refine forever), naming the facet.
- *
- * *out is set (to a mesh to free with anistar_mesh_free) for OK and INCOMPLETE, NULL
- * otherwise. The result depends only on the inputs and the seed (not on the time limit
- * unless it is reached).
- */
-ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out);
-
-/* ------------------------------------------------------------------------------------ */
-/* Output mesh                                                                            */
-/* ------------------------------------------------------------------------------------ */
-
-#define ANISTAR_HISTOGRAM_BINS 64
-
-/* Statistics of a mesh (copied out by anistar_mesh_get_stats). */
-typedef struct anistar_mesh_stats {
-    size_t vertices;              /* output vertices (sites of output facets) */
-    size_t facets;                /* output triangles */
-    size_t inconsistent_facets;   /* facets left out because inconsistent (0 when OK) */
-    size_t poles;                 /* internal sites near the medial axis (not output) */
-    long long euler_characteristic; /* V - E + F of the output */
-    int closed_manifold;          /* every edge in 2 triangles, every vertex link 1 cycle */
-    int complete;                 /* 1 if the run finished (ANISTAR_OK) */
-    double rho_max;               /* largest radius-edge ratio of a facet in the metric
-                                     of one of its vertices */
-    double r_max;                 /* largest surface circumradius r_v(tau) over the facets
-                                     and their three vertex metrics */
-    double gamma_max;             /* largest distortion between two vertices of a facet */
-    double histogram_width;       /* bin width of histogram */
-    /* squared radius-edge ratios of every facet in each of its 3 vertex metrics: bin i
-     * counts values in [i w, (i+1) w), the last bin also everything above */
-    uint64_t histogram[ANISTAR_HISTOGRAM_BINS];
-    uint64_t insertions_initial;  /* initial surface points */
-    uint64_t insertions_rule[3];  /* rule 1 (size, distortion), 2 (shape), 3 (consistency) */
-    uint64_t pick_valid_tries;    /* random candidates tested by Pick_valid */
-    uint64_t pick_valid_failures; /* Pick_valid calls that fell back to the center */
-    double seconds_total, seconds_init, seconds_refine, seconds_output;
-    double rho2_mean;             /* mean of the 3 F squared radius-edge ratios above */
-    double approx_error_mean;     /* distance from the facets to S: samples at 4 fixed
-                                     barycentric points of each facet projected on S,
-                                     mean weighted by area (so over area-uniform points) */
-    double approx_error_max;      /* ... and the largest of those distances */
-    /* vertex optimisation (paper 6.2; ANISTAR_PARAM_OPTIMIZE = 1 and a complete run,
-     * else all zero): optimized is 1 when it ran; histogram_before and rho2_mean_before
-     * describe the mesh before it (histogram, rho2_mean: after) */
-    int optimized;
-    uint64_t optimize_moved;      /* vertices moved (accepted moves) */
-    uint64_t optimize_tries;      /* candidate positions tested */
-    uint64_t optimize_passes;     /* passes over the vertices */
-    double seconds_optimize;      /* included in seconds_total and seconds_output */
-    double rho2_mean_before;
-    uint64_t histogram_before[ANISTAR_HISTOGRAM_BINS];
-    /* how the run ended and what it cost */
-    int stop_reason;              /* anistar_stop_reason */
-    size_t components;            /* connected components of the output (counted by the
-                                     final checks of a complete run; 0 otherwise) */
-    size_t components_found;      /* implicit and image surfaces: components of the output
-                                     that the surface sample missed (refinement found
-                                     them), and ... */
-    size_t components_split;      /* ... sample components that came out as several (the
-                                     sampler's grid merges components closer than a cell),
-                                     and ... */
-    size_t components_joined;     /* ... sample components joined in one (a neck thinner
-                                     than a cell); the final checks prove the mesh against
-                                     S itself, the grid is only a sample */
-    size_t components_below_resolution; /* image isosurfaces: components of the sample
-                                     smaller than about half a voxel across (noise a hair
-                                     above the isovalue), not meshed */
-    size_t pieces_below_resolution; /* implicit and image surfaces: pieces of the output
-                                     that fit in a ball of the surface's resolution (the
-                                     feature size's floor): accepted without proving that
-                                     they bound a region of their own */
-    size_t edges_below_resolution; /* edges across a gap or a plate (opposite normals at
-                                     their ends) whose midpoint is within the resolution
-                                     of S: accepted, the gap is not resolved */
-    double hmin, hmax;            /* the Euclidean size bounds in force (hmin: the one given
-                                     or the automatic one; 0: none) */
-    size_t facets_below_hmin;     /* facets shorter than hmin (longest edge) that exceed
-                                     r0, rho0 or gamma0 in a vertex metric: hmin held them */
-    double estimate_vertices;     /* the up-front estimate (anistar_progress) */
-    double estimate_bytes;
-    size_t peak_bytes;            /* the most bytes the run held through the context's
-                                     allocator at once */
-    /* why the mesh is as dense as it is: insertions by rule and cause. insertions_rule[0]
-     * is the sum of the four rule-1 causes; a facet violating several counts once, for
-     * its largest ratio */
-    uint64_t insertions_topology; /* topology rule: a vertex star empty or not one closed
-                                     fan */
-    uint64_t insertions_size;     /* rule 1: surface circumradius >= r0 */
-    uint64_t insertions_distortion; /* rule 1: distortion >= gamma0 */
-    uint64_t insertions_approx;   /* rule 1: distance to S > approx */
-    uint64_t insertions_feature;  /* rule 1: circumradius >= a fraction of the local
-                                     feature size (the sizing field's lfs part) */
-    uint64_t insertions_hmax;     /* rule 1: longest edge > hmax */
-    uint64_t stall_max;           /* the longest stretch of consistency (rule 3) insertions
-                                     without a new low of the inconsistent-facet count */
-    double feature_alpha;         /* facets were kept below this fraction of the local
-                                     feature size: 1, halved each time the final checks
-                                     found the topology wrong (down to 1/8) */
-    uint64_t feature_halvings;    /* how many times that happened */
-    uint64_t topology_below_hmin; /* topology refinement points not inserted because they
-                                     lay nearer than hmin to a site (the star was left to
-                                     the final checks) */
-    size_t sites_unused;          /* sites whose star holds no restricted facet: no facet
-                                     uses them, they are not output vertices (a complete
-                                     run accepts them; their cells met S only where the
-                                     topology rule could not refine above hmin) */
-} anistar_mesh_stats;
-
-ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);
-ANISTAR_API size_t anistar_mesh_triangle_count(const anistar_mesh *mesh);
-/* Copy out the vertices (3 per vertex), the triangles (3 0-based indices each,
- * counterclockwise seen from outside) and the per-vertex metric tensors (6 each). The
- * arrays must hold the counts above. */
-ANISTAR_API void anistar_mesh_get_vertices(const anistar_mesh *mesh, double *xyz);
-ANISTAR_API void anistar_mesh_get_triangles(const anistar_mesh *mesh, int32_t *tri);
-ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tensors);
-ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats);
-/* Write the mesh, the format chosen by the extension of path: .off .obj .ply .stl .mesh
- * .vtk .vtu (with the tensors where the format holds them) or .sol (the tensors alone).
- * ctx receives the message (NULL: the mesh's context). ANISTAR_EFORMAT for an unknown
- * extension, ANISTAR_EIO, ANISTAR_EINVAL (e.g. .stl with coordinates beyond float). */
-ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
-                                              const char *path);
-ANISTAR_API void anistar_mesh_free(anistar_mesh *mesh);
-
-/* ==== END MESHER ==== */
-
-/* ==== RENDERING (issue 5) ==== */
-
-/* ------------------------------------------------------------------------------------ */
-/* Rendering meshes to PNG                                                                */
-/* ------------------------------------------------------------------------------------ */
-
-/*
- * A dependency-free renderer: a triangle mesh drawn orthographically with flat shading,
- * a z-buffer and supersampling, optionally coloured per triangle through a perceptual
- * colormap (viridis) with a colour bar, written as an 8-bit RGB PNG. The output is a
- * pure function of the input (the same mesh and options give the same bytes).
- *
- * Per-triangle values (ANISTAR_COLOR_...):
- *   QUALITY     the radius-edge ratio circumradius / shortest edge, Euclidean
- *               (1/sqrt(3) ~ 0.577 for an equilateral triangle; larger is worse);
- *   ANISOTROPY  with per-vertex tensors: the largest over the triangle's three vertices
- *               of sqrt(lambda_max / lambda_min) of the tensor (the ratio of the longest
- *               to the shortest prescribed edge length; 1 for an isotropic metric; NaN,
- *               drawn grey, where a tensor is not positive definite); without tensors:
- *               the triangle's own aspect ratio, longest edge / shortest altitude
- *               (2/sqrt(3) ~ 1.155 for an equilateral triangle);
- *   NONE        no colour (a light grey-blue), no legend.
- * A degenerate triangle (zero area) has an infinite QUALITY and aspect: it takes the top
- * colour and does not widen the automatic range.
- */
-typedef enum anistar_color_by {
-    ANISTAR_COLOR_NONE = 0,
-    ANISTAR_COLOR_QUALITY = 1,
-    ANISTAR_COLOR_ANISOTROPY = 2
-} anistar_color_by;
-
-/* The largest image width and height. */
-#define ANISTAR_RENDER_MAX_SIDE 16384
-
-/*
- * Rendering options: all inputs; fill with anistar_render_options_init, then change
- * fields. The view is orthographic: the `up` axis points up on screen, the viewer sits
- * at azimuth `azimuth` (degrees, in the plane normal to `up`; for up = z, 0 looks from
- * +x and 90 from +y) and elevation `elevation` (degrees above that plane). The mesh is
- * fitted to the image with a 5% margin. Edges are 1-pixel lines on the visible
- * triangles (hidden edges never show); they fade out on triangles whose projection is
- * less than 4 pixels high and vanish below 1.5 pixels, so dense meshes do not turn black.
- */
-typedef struct anistar_render_options {
-    int width, height;          /* pixels, 1..ANISTAR_RENDER_MAX_SIDE (1024 x 768) */
-    double azimuth, elevation;  /* degrees, finite (30, 20) */
-    int up;                     /* the vertical axis: 0 = x, 1 = y, 2 = z (2) */
-    anistar_color_by color;     /* per-triangle values (ANISTAR_COLOR_QUALITY) */
-    int edges;                  /* 1: draw the edges (1), 0: not */
-    int legend;                 /* 1: colour bar with min, middle, max and title (1) */
-    int supersample;            /* samples per pixel side, 1..4 (3) */
-    double range_min, range_max; /* colour range; both NaN (default): the min and max of
-                                    the finite values; else finite with min < max
-                                    (values outside are clamped to the ends) */
-    int compress;               /* 1: deflate (fixed Huffman codes) (1), 0: stored */
-    const char *sol_path;       /* anistar_render_file: a Medit .sol of per-vertex
-                                   tensors for ANISOTROPY (NULL); borrowed for the call */
-} anistar_render_options;
-
-/* Fill *opt with the defaults above. */
-ANISTAR_API void anistar_render_options_init(anistar_render_options *opt);
-
-/*
- * Render the triangle mesh in the file mesh_path (.off .obj .ply .stl .mesh; PLY vertex
- * properties m11 m12 m13 m22 m23 m33 are read as tensors) to the PNG file png_path.
- * Tensors for ANISOTROPY come from opt->sol_path when given (they replace the PLY's).
- * opt == NULL uses the defaults. Returns EINVAL (bad options, NULL paths), EIO (a file
- * that cannot be read or written: the message names it; a partial PNG is removed),
- * EFORMAT (a malformed mesh or .sol, a .sol whose vertex count differs), ENOMEM.
- */
-ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char *mesh_path,
-                                               const char *png_path,
-                                               const anistar_render_options *opt);
-
-/*
- * Render a mesh given as arrays: nv vertices xyz (3 nv doubles), nt triangles tri
- * (3 nt 0-based indices), tensors NULL or 6 nv doubles (m11 m12 m13 m22 m23 m33). When
- * values is not NULL it holds nt per-triangle values that are drawn instead of
- * opt->color (NaN: grey, +-inf: the ends of the colormap) and label titles the legend
- * (NULL: none; letters, digits and . - + ( ) / _ : = are drawn, others as '?').
- * nt == 0 gives an image of the background. EINVAL for bad options, a NULL array with
- * a nonzero count, an index outside [0, nv), a non-finite coordinate; EIO; ENOMEM.
- */
-ANISTAR_API anistar_status anistar_render_arrays(anistar_context *ctx, size_t nv,
-                                                 const double *xyz, size_t nt,
-                                                 const int32_t *tri, const double *tensors,
-                                                 const double *values, const char *label,
-                                                 const char *png_path,
-                                                 const anistar_render_options *opt);
-
-/*
- * The per-triangle values of `by` (QUALITY or ANISOTROPY, as above) for the arrays of
- * anistar_render_arrays, into out[nt]. EINVAL for NONE or an invalid mesh.
- */
-ANISTAR_API anistar_status anistar_triangle_values(anistar_context *ctx, anistar_color_by by,
-                                                   size_t nv, const double *xyz, size_t nt,
-                                                   const int32_t *tri, const double *tensors,
-                                                   double *out);
-
-/* ==== END RENDERING ==== */
-
-/* ==== SURFACES AND METRIC FIELDS (issue 4) — section owned by the surface layer ==== */
 
 /* ------------------------------------------------------------------------------------ */
 /* Surfaces                                                                               */
@@ -834,7 +463,502 @@ ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const do
 /* Free a metric (NULL is ok). */
 ANISTAR_API void anistar_metric_free(anistar_metric *m);
 
-/* ==== END SURFACES AND METRIC FIELDS ==== */
+/* ------------------------------------------------------------------------------------ */
+/* Mesher                                                                                 */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * The mesher (opaque) builds an anisotropic Delaunay mesh of a surface S for a metric
+ * field (Boissonnat, Shi, Tournois, Yvinec): the star of every output vertex v is the
+ * restricted Delaunay star of v for v's own metric M_v; every facet has radius-edge ratio
+ * <= rho0 and surface circumradius < r0 in the metric of each of its three vertices, and
+ * the metric distortion between its vertices is below gamma0. The mesher keeps pointers to
+ * the surface and the metric (both must outlive it) and uses the context it was created
+ * with for memory and messages. Two meshers on two contexts run in two threads at once.
+ */
+typedef struct anistar_mesher anistar_mesher;
+typedef struct anistar_mesh anistar_mesh;
+typedef struct anistar_surface anistar_surface;
+typedef struct anistar_metric anistar_metric;
+
+/* Parameters of anistar_mesher_set (ranges checked; ANISTAR_EINVAL names the rule). */
+typedef enum anistar_param {
+    ANISTAR_PARAM_R0 = 0,       /* size bound: surface circumradius in vertex metrics; > 0
+                                   (default 0.1) */
+    ANISTAR_PARAM_GAMMA0,       /* distortion bound between a facet's vertex metrics; > 1
+                                   (default 1.5) */
+    ANISTAR_PARAM_RHO0,         /* radius-edge ratio bound; > 1 (default 3) */
+    ANISTAR_PARAM_BETA,         /* Pick_valid: "small" configurations; >= 1 (default 2.5) */
+    ANISTAR_PARAM_DELTA,        /* Pick_valid: picking ratio; in (0, 1) (default 0.3) */
+    ANISTAR_PARAM_APPROX,       /* approximation bound (distance facet-S); >= 0, 0 = off
+                                   (default 0) */
+    ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices, and
+                                   refuse at once (ANISTAR_EINVAL) a run whose up-front
+                                   estimate exceeds it; integer in [0, 2000000], 0 = the
+                                   hard limit of the star set, 2096128 sites
+                                   (2^21 - 1024) (default 1000000) */
+    ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
+                                   refinement; >= 0, 0 = no limit (default) */
+    ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
+                                   [0, 2^53] (default 0) */
+    ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer
+                                   in [1, 100000] (default 60) */
+    ANISTAR_PARAM_OPTIMIZE,     /* 1: vertex optimisation after a complete run (paper
+                                   6.2; moves vertices toward the area-weighted mean of
+                                   their facets' surface centers while every guarantee
+                                   holds and quality improves); 0 or 1 (default 0) */
+    ANISTAR_PARAM_MAX_STALL,    /* stall budget: stop (ANISTAR_INCOMPLETE, stop reason
+                                   ANISTAR_STOP_STALL) after this many consistency (rule 3)
+                                   insertions in a row without the inconsistent-facet count
+                                   they face reaching a new low (rule 3 runs when no other
+                                   rule applies: in a converging run that count falls to 0);
+                                   integer in [0, 2^53], 0 = automatic (default: the larger
+                                   of 50000 and 2 x the vertices at the last new low) */
+    ANISTAR_PARAM_HMIN,         /* Euclidean size floor, as MMG's hmin: the metric is clamped
+                                   (every eigenvalue of F at most r0/hmin, at least r0/hmax
+                                   with ANISTAR_PARAM_HMAX), and a facet whose longest
+                                   edge is shorter gets no size, distortion, approximation
+                                   or shape refinement (the feature size and consistency
+                                   still apply, and the topology rule except on triangle
+                                   meshes; stats.facets_below_hmin counts the facets it held
+                                   beyond r0, rho0 or gamma0); >= 0, 0 = automatic
+                                   (default): the resolution of what the metric is made
+                                   from: half a triangle mesh's mean edge for a field
+                                   fitted to its vertices (curvature, sol); otherwise the
+                                   floor of the feature size (an eighth of the mean edge,
+                                   about a voxel for an image, 1e-4 of the bounding radius
+                                   for an implicit surface) */
+    ANISTAR_PARAM_HMAX,         /* Euclidean size ceiling, as MMG's hmax: a facet whose
+                                   longest edge is longer is refined (rule 1, counted in
+                                   stats.insertions_hmax); >= 0, 0 = none (default) */
+    ANISTAR_PARAM_ANISO_CAP     /* 1: the anisotropy that pays: where the metric's
+                                   eigenframe turns along S, each small eigenvalue of F is
+                                   raised until a facet of the size the metric asks for
+                                   keeps its vertices' distortion within gamma0 (the
+                                   elongation the distortion rule would undo is not asked
+                                   for; docs/algorithm.md); no effect on triangle-mesh
+                                   surfaces (their normals are piecewise); 0: the metric
+                                   as the field gives it; 0 or 1 (default 1) */
+} anistar_param;
+
+/* A mesher for surface s and metric field m (both not owned). */
+ANISTAR_API anistar_status anistar_mesher_new(anistar_context *ctx, const anistar_surface *s,
+                                              const anistar_metric *m, anistar_mesher **out);
+ANISTAR_API void anistar_mesher_free(anistar_mesher *m);
+
+/* Set a parameter. ANISTAR_EINVAL (message in the mesher's context) for an unknown key or
+ * a value out of range; the parameter then keeps its value. */
+ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param key,
+                                              double value);
+/* Read a parameter's current value. */
+ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_param key,
+                                              double *value);
+
+/* Progress callback: called during anistar_mesher_run every few hundred insertions and
+ * at least every 0.25 s of refinement, with the number of vertices, of inconsistent
+ * facets, and the seconds elapsed; return nonzero to cancel the run
+ * (anistar_mesher_run then returns ANISTAR_ECANCELED and no mesh). The callback may call
+ * anistar_mesher_get_progress for more (the estimate, the stall count). */
+typedef int (*anistar_progress_fn)(size_t vertices, size_t inconsistent, double seconds,
+                                   void *user);
+ANISTAR_API void anistar_mesher_set_progress(anistar_mesher *m, anistar_progress_fn fn,
+                                             void *user);
+
+/* The state of a run (anistar_mesher_get_progress): all outputs. */
+typedef struct anistar_progress {
+    size_t vertices;          /* surface vertices (sites) so far */
+    size_t inconsistent;      /* inconsistent facets now */
+    double seconds;           /* since the run started */
+    double estimate_vertices; /* up-front estimate of the final vertex count from the
+                                 metric and the sizing field (0 until it is made) */
+    double estimate_bytes;    /* ... and of the run's peak memory */
+    double eta_seconds;       /* estimated seconds left (< 0: unknown) */
+    uint64_t stalled;         /* consistency (rule 3) insertions since the inconsistent-
+                                 facet count they face last reached a new low */
+    uint64_t max_stall;       /* the stall budget in force (ANISTAR_PARAM_MAX_STALL) */
+} anistar_progress;
+
+/* Copy the state of the current (or last) run of m into *p: from the progress callback
+ * (the thread running anistar_mesher_run) or after the run; not from another thread
+ * while a run goes on. */
+ANISTAR_API anistar_status anistar_mesher_get_progress(const anistar_mesher *m,
+                                                       anistar_progress *p);
+
+/* Ask the current run of m to stop after the insertion in progress: anistar_mesher_run
+ * then returns ANISTAR_INCOMPLETE with the mesh of the consistent facets so far (stop
+ * reason ANISTAR_STOP_REQUESTED), as at a limit. During the vertex optimisation it ends
+ * the optimisation between two moves: the mesh returned is then the certified mesh
+ * optimised so far, still with ANISTAR_INCOMPLETE. Async-signal-safe and thread-safe: it
+ * only sets a lock-free atomic flag, so a SIGINT handler or another thread may call it.
+ * A call made while no run is going on makes the next run stop at its first check; each
+ * run clears the flag when it ends. */
+ANISTAR_API void anistar_mesher_stop(anistar_mesher *m);
+
+/* Why a run ended: anistar_mesh_stats.stop_reason. */
+typedef enum anistar_stop_reason {
+    ANISTAR_STOP_DONE = 0,         /* refinement finished and the mesh is certified
+                                      (ANISTAR_OK) */
+    ANISTAR_STOP_MAX_VERTICES = 1, /* ANISTAR_PARAM_MAX_VERTICES reached */
+    ANISTAR_STOP_MAX_SECONDS = 2,  /* ANISTAR_PARAM_MAX_SECONDS reached */
+    ANISTAR_STOP_STALL = 3,        /* the inconsistent-facet count reached no new low for
+                                      ANISTAR_PARAM_MAX_STALL insertions */
+    ANISTAR_STOP_REQUESTED = 4,    /* anistar_mesher_stop */
+    ANISTAR_STOP_UNCERTIFIED = 5   /* no rule applies any more, but the mesh fails one of
+                                      the final checks of anistar_mesher_run (the message
+                                      names the check and the place) */
+} anistar_stop_reason;
+
+/* The reason's name: "done", "max_vertices", "max_seconds", "stall", "requested",
+ * "uncertified"; "unknown" otherwise. Static strings. */
+ANISTAR_API const char *anistar_stop_reason_name(int reason);
+
+/*
+ * Run the mesher. The three outcomes, and what each guarantees:
+ *
+ * ANISTAR_OK — a certified mesh: non-empty; every restricted facet consistent (in the
+ *   surface star of each of its three vertices); every vertex star one closed fan; the
+ *   mesh a closed, oriented (outward), 2-manifold triangulation; one mesh component for
+ *   each connected component of S that the surface sample found, and no component
+ *   bridging two of them; for a triangle-mesh surface, each component's Euler
+ *   characteristic equal to that of the input component it covers. Every facet then has
+ *   surface circumradius < r0, radius-edge ratio <= rho0 and distortion < gamma0 in the
+ *   metric of each of its three vertices (and meets approx when set).
+ * ANISTAR_INCOMPLETE — *out holds the consistent facets only (its statistics count the
+ *   others; it need not be closed) and anistar_last_error says why: a limit
+ *   (max_vertices, max_seconds), a stall (max_stall), anistar_mesher_stop, or a final
+ *   check that failed (stop reason ANISTAR_STOP_UNCERTIFIED: e.g. a component whose
+ *   Euler characteristic differs from the input's, named with a point on it).
+ * An error — *out is NULL: ANISTAR_EINVAL for a metric that is not finite and positive
+ *   definite at a point of S (the message names the point), or a run refused at once
+ *   because its estimated vertex count exceeds max_vertices (the message gives the
+ *   estimate); ANISTAR_ENOSURFACE, surface errors; ANISTAR_ENOMEM; ANISTAR_ECANCELED
+ *   (the progress callback returned nonzero); ANISTAR_EINTERNAL for a broken invariant
+ *   (e.g. a refinement point within a relative 1e-9 of an existing site, which would
+ *   otherwise refine forever), naming the facet.
+ *
+ * *out is set (to a mesh to free with anistar_mesh_free) for OK and INCOMPLETE, NULL
+ * otherwise. The result depends only on the inputs and the seed (not on the time limit
+ * unless it is reached).
+ */
+ANISTAR_API anistar_status anistar_mesher_run(anistar_mesher *m, anistar_mesh **out);
+
+/* ------------------------------------------------------------------------------------ */
+/* Output mesh                                                                            */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * The result of anistar_mesher_run (opaque): vertices, triangles oriented outward, a
+ * metric tensor per vertex, and the run's statistics. Data leave it through copy-out
+ * getters into arrays the caller sizes from the counts, or through anistar_mesh_write.
+ */
+
+#define ANISTAR_HISTOGRAM_BINS 64
+
+/* Statistics of a mesh (copied out by anistar_mesh_get_stats). */
+typedef struct anistar_mesh_stats {
+    size_t vertices;              /* output vertices (sites of output facets) */
+    size_t facets;                /* output triangles */
+    size_t inconsistent_facets;   /* facets left out because inconsistent (0 when OK) */
+    size_t poles;                 /* internal sites near the medial axis (not output) */
+    long long euler_characteristic; /* V - E + F of the output */
+    int closed_manifold;          /* every edge in 2 triangles, every vertex link 1 cycle */
+    int complete;                 /* 1 if the run finished (ANISTAR_OK) */
+    double rho_max;               /* largest radius-edge ratio of a facet in the metric
+                                     of one of its vertices */
+    double r_max;                 /* largest surface circumradius r_v(tau) over the facets
+                                     and their three vertex metrics */
+    double gamma_max;             /* largest distortion between two vertices of a facet */
+    double histogram_width;       /* bin width of histogram */
+    /* squared radius-edge ratios of every facet in each of its 3 vertex metrics: bin i
+     * counts values in [i w, (i+1) w), the last bin also everything above */
+    uint64_t histogram[ANISTAR_HISTOGRAM_BINS];
+    uint64_t insertions_initial;  /* initial surface points */
+    uint64_t insertions_rule[3];  /* rule 1 (size, distortion), 2 (shape), 3 (consistency) */
+    uint64_t pick_valid_tries;    /* random candidates tested by Pick_valid */
+    uint64_t pick_valid_failures; /* Pick_valid calls that fell back to the center */
+    double seconds_total, seconds_init, seconds_refine, seconds_output;
+    double rho2_mean;             /* mean of the 3 F squared radius-edge ratios above */
+    double approx_error_mean;     /* distance from the facets to S: samples at 4 fixed
+                                     barycentric points of each facet projected on S,
+                                     mean weighted by area (so over area-uniform points) */
+    double approx_error_max;      /* ... and the largest of those distances */
+    /* vertex optimisation (paper 6.2; ANISTAR_PARAM_OPTIMIZE = 1 and a complete run,
+     * else all zero): optimized is 1 when it ran; histogram_before and rho2_mean_before
+     * describe the mesh before it (histogram, rho2_mean: after) */
+    int optimized;
+    uint64_t optimize_moved;      /* vertices moved (accepted moves) */
+    uint64_t optimize_tries;      /* candidate positions tested */
+    uint64_t optimize_passes;     /* passes over the vertices */
+    double seconds_optimize;      /* included in seconds_total and seconds_output */
+    double rho2_mean_before;
+    uint64_t histogram_before[ANISTAR_HISTOGRAM_BINS];
+    /* how the run ended and what it cost */
+    int stop_reason;              /* anistar_stop_reason */
+    size_t components;            /* connected components of the output (counted by the
+                                     final checks of a complete run; 0 otherwise) */
+    size_t components_found;      /* implicit and image surfaces: components of the output
+                                     that the surface sample missed (refinement found
+                                     them), and ... */
+    size_t components_split;      /* ... sample components that came out as several (the
+                                     sampler's grid merges components closer than a cell),
+                                     and ... */
+    size_t components_joined;     /* ... sample components joined in one (a neck thinner
+                                     than a cell); the final checks prove the mesh against
+                                     S itself, the grid is only a sample */
+    size_t components_below_resolution; /* image isosurfaces: components of the sample
+                                     smaller than about half a voxel across (noise a hair
+                                     above the isovalue), not meshed */
+    size_t pieces_below_resolution; /* implicit and image surfaces: pieces of the output
+                                     that fit in a ball of the surface's resolution (the
+                                     feature size's floor): accepted without proving that
+                                     they bound a region of their own */
+    size_t edges_below_resolution; /* edges across a gap or a plate (opposite normals at
+                                     their ends) whose midpoint is within the resolution
+                                     of S: accepted, the gap is not resolved */
+    double hmin, hmax;            /* the Euclidean size bounds in force (hmin: the one given
+                                     or the automatic one; 0: none) */
+    size_t facets_below_hmin;     /* facets shorter than hmin (longest edge) that exceed
+                                     r0, rho0 or gamma0 in a vertex metric: hmin held them */
+    double estimate_vertices;     /* the up-front estimate (anistar_progress) */
+    double estimate_bytes;
+    size_t peak_bytes;            /* the most bytes the run held through the context's
+                                     allocator at once */
+    /* why the mesh is as dense as it is: insertions by rule and cause. insertions_rule[0]
+     * is the sum of the four rule-1 causes; a facet violating several counts once, for
+     * its largest ratio */
+    uint64_t insertions_topology; /* topology rule: a vertex star empty or not one closed
+                                     fan */
+    uint64_t insertions_size;     /* rule 1: surface circumradius >= r0 */
+    uint64_t insertions_distortion; /* rule 1: distortion >= gamma0 */
+    uint64_t insertions_approx;   /* rule 1: distance to S > approx */
+    uint64_t insertions_feature;  /* rule 1: circumradius >= a fraction of the local
+                                     feature size (the sizing field's lfs part) */
+    uint64_t insertions_hmax;     /* rule 1: longest edge > hmax */
+    uint64_t stall_max;           /* the longest stretch of consistency (rule 3) insertions
+                                     without a new low of the inconsistent-facet count */
+    double feature_alpha;         /* facets were kept below this fraction of the local
+                                     feature size: 1, halved each time the final checks
+                                     found the topology wrong (down to 1/8) */
+    uint64_t feature_halvings;    /* how many times that happened */
+    uint64_t topology_below_hmin; /* topology refinement points not inserted because they
+                                     lay nearer than hmin to a site (the star was left to
+                                     the final checks) */
+    size_t sites_unused;          /* sites whose star holds no restricted facet: no facet
+                                     uses them, they are not output vertices (a complete
+                                     run accepts them; their cells met S only where the
+                                     topology rule could not refine above hmin) */
+} anistar_mesh_stats;
+
+ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);
+ANISTAR_API size_t anistar_mesh_triangle_count(const anistar_mesh *mesh);
+/* Copy out the vertices (3 per vertex), the triangles (3 0-based indices each,
+ * counterclockwise seen from outside) and the per-vertex metric tensors (6 each). The
+ * arrays must hold the counts above. */
+ANISTAR_API void anistar_mesh_get_vertices(const anistar_mesh *mesh, double *xyz);
+ANISTAR_API void anistar_mesh_get_triangles(const anistar_mesh *mesh, int32_t *tri);
+ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tensors);
+ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats);
+/* Write the mesh, the format chosen by the extension of path: .off .obj .ply .stl .mesh
+ * .vtk .vtu (with the tensors where the format holds them) or .sol (the tensors alone).
+ * ctx receives the message (NULL: the mesh's context). ANISTAR_EFORMAT for an unknown
+ * extension, ANISTAR_EIO, ANISTAR_EINVAL (e.g. .stl with coordinates beyond float). */
+ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
+                                              const char *path);
+ANISTAR_API void anistar_mesh_free(anistar_mesh *mesh);
+
+/* ------------------------------------------------------------------------------------ */
+/* What a file holds                                                                      */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * What a user checks before meshing a file (the command line's `anistar info`): for a
+ * triangle mesh its counts, its topology (borders, non-manifold edges and vertices,
+ * components with their Euler characteristic and genus), an exact self-intersection test,
+ * its bounding box and edge lengths; for a 3D image its grid, its value range, Otsu's
+ * threshold and the connected components of the voxels inside an isovalue. The file is
+ * read by the same readers as anistar_surface_read and anistar_surface_from_image_file,
+ * but a mesh need not be closed or manifold here: saying what is wrong is the point. The
+ * caller owns the struct; every field is an output; nothing is kept.
+ */
+
+#define ANISTAR_INFO_COMPONENTS 16            /* components described one by one */
+#define ANISTAR_INFO_PAIRS 8                  /* intersecting triangle pairs listed */
+#define ANISTAR_INFO_MAX_INTERSECTIONS 10000  /* the intersection count stops there */
+
+/* One connected component of a triangle mesh (triangles joined through shared
+ * vertices). */
+typedef struct anistar_component_info {
+    size_t vertices, edges, triangles;
+    long long euler_characteristic; /* V - E + F */
+    int closed;                     /* every edge in exactly two triangles, every vertex
+                                       one fan of triangles, no repeated index */
+    int orientable;                 /* its triangles can be oriented consistently */
+    long long genus;                /* (2 - chi) / 2 when closed and orientable, else -1 */
+} anistar_component_info;
+
+typedef struct anistar_mesh_info {
+    size_t vertices;             /* as read */
+    size_t used_vertices;        /* vertices of at least one triangle */
+    size_t triangles;            /* as read (polygons split into fans) */
+    size_t edges;                /* distinct vertex pairs of a triangle */
+    size_t components;           /* connected components */
+    size_t border_edges;         /* edges of exactly one triangle */
+    size_t nonmanifold_edges;    /* edges of three or more triangles */
+    size_t nonmanifold_vertices; /* vertices whose triangles form more than one fan */
+    size_t degenerate_triangles; /* a repeated vertex index or three collinear points
+                                    (exactly); skipped by the intersection test */
+    size_t nonorientable_components;
+    int closed_manifold;         /* no border or non-manifold edge or vertex, no repeated
+                                    index */
+    long long euler_characteristic; /* V - E + F over the whole mesh */
+    /* Pairs of triangles whose closed point sets meet other than in the vertices or the
+     * edge that their indices share (a touch at one point counts, so does a duplicated
+     * triangle), decided exactly; counting stops at ANISTAR_INFO_MAX_INTERSECTIONS
+     * (self_intersections_capped = 1). The first pairs_listed pairs (i < j, 0-based
+     * triangle numbers in file order, increasing) are in pairs. */
+    size_t self_intersections;
+    int self_intersections_capped;
+    size_t pairs_listed;
+    int32_t pairs[ANISTAR_INFO_PAIRS][2];
+    double bbox_min[3], bbox_max[3]; /* of the used vertices */
+    double edge_min, edge_mean, edge_max; /* Euclidean lengths of the distinct edges */
+    /* the first components_listed components, in the order of their first triangle */
+    size_t components_listed;
+    anistar_component_info component[ANISTAR_INFO_COMPONENTS];
+} anistar_mesh_info;
+
+/* Describe the triangle mesh in the file path (.off .obj .ply .stl .mesh, or any other
+ * format the mesh readers take). ANISTAR_EIO, ANISTAR_EFORMAT (the readers' errors, the
+ * message naming the file and the line), ANISTAR_EINVAL (NULL arguments, a coordinate
+ * beyond 1e40 in magnitude: the exact tests need it), ANISTAR_ENOMEM. */
+ANISTAR_API anistar_status anistar_mesh_file_info(anistar_context *ctx, const char *path,
+                                                  anistar_mesh_info *info);
+
+typedef struct anistar_image_info {
+    size_t dims[3];                  /* voxels per axis */
+    double spacing[3], origin[3];    /* origin: the world position of voxel (0,0,0) */
+    double direction[9];             /* row-major: direction[3r + c] = component r of
+                                        axis c's direction */
+    const char *voxel_type;          /* "uint8", "int16", "float32", ... (static) */
+    double bbox_min[3], bbox_max[3]; /* world box of the voxel centers */
+    double value_min, value_max;     /* of the finite voxels (NaN if none) */
+    size_t nonfinite;                /* NaN or infinite voxels */
+    double otsu;                     /* Otsu's threshold (anistar_image_otsu); NaN when
+                                        every finite voxel has the same value */
+    double iso;                      /* the isovalue used: the one given, else otsu */
+    int iso_given;                   /* 1: iso was given */
+    int inside;                      /* ANISTAR_INSIDE_GREATER or _LESS */
+    size_t voxels_inside;            /* voxels strictly beyond iso on the inside side */
+    size_t components;               /* connected components of those voxels, 6-connected
+                                        (voxels sharing a face); 0 when iso is NaN */
+} anistar_image_info;
+
+/* Describe the 3D image in the file path (.inr .nrrd .nhdr .mha .mhd) and the voxels
+ * inside the isovalue iso (NaN: Otsu's threshold), inside = ANISTAR_INSIDE_GREATER or
+ * ANISTAR_INSIDE_LESS. ANISTAR_EIO, ANISTAR_EFORMAT (the readers' errors), ANISTAR_EINVAL
+ * (NULL arguments, iso infinite, a bad inside), ANISTAR_ENOMEM (4 bytes per voxel are
+ * needed for the labelling). */
+ANISTAR_API anistar_status anistar_image_file_info(anistar_context *ctx, const char *path,
+                                                   double iso, int inside,
+                                                   anistar_image_info *info);
+
+/* ------------------------------------------------------------------------------------ */
+/* Rendering meshes to PNG                                                                */
+/* ------------------------------------------------------------------------------------ */
+
+/*
+ * A dependency-free renderer: a triangle mesh drawn orthographically with flat shading,
+ * a z-buffer and supersampling, optionally coloured per triangle through a perceptual
+ * colormap (viridis) with a colour bar, written as an 8-bit RGB PNG. The output is a
+ * pure function of the input (the same mesh and options give the same bytes).
+ *
+ * Per-triangle values (ANISTAR_COLOR_...):
+ *   QUALITY     the radius-edge ratio circumradius / shortest edge, Euclidean
+ *               (1/sqrt(3) ~ 0.577 for an equilateral triangle; larger is worse);
+ *   ANISOTROPY  with per-vertex tensors: the largest over the triangle's three vertices
+ *               of sqrt(lambda_max / lambda_min) of the tensor (the ratio of the longest
+ *               to the shortest prescribed edge length; 1 for an isotropic metric; NaN,
+ *               drawn grey, where a tensor is not positive definite); without tensors:
+ *               the triangle's own aspect ratio, longest edge / shortest altitude
+ *               (2/sqrt(3) ~ 1.155 for an equilateral triangle);
+ *   NONE        no colour (a light grey-blue), no legend.
+ * A degenerate triangle (zero area) has an infinite QUALITY and aspect: it takes the top
+ * colour and does not widen the automatic range.
+ */
+typedef enum anistar_color_by {
+    ANISTAR_COLOR_NONE = 0,
+    ANISTAR_COLOR_QUALITY = 1,
+    ANISTAR_COLOR_ANISOTROPY = 2
+} anistar_color_by;
+
+/* The largest image width and height. */
+#define ANISTAR_RENDER_MAX_SIDE 16384
+
+/*
+ * Rendering options: all inputs; fill with anistar_render_options_init, then change
+ * fields. The view is orthographic: the `up` axis points up on screen, the viewer sits
+ * at azimuth `azimuth` (degrees, in the plane normal to `up`; for up = z, 0 looks from
+ * +x and 90 from +y) and elevation `elevation` (degrees above that plane). The mesh is
+ * fitted to the image with a 5% margin. Edges are 1-pixel lines on the visible
+ * triangles (hidden edges never show); they fade out on triangles whose projection is
+ * less than 4 pixels high and vanish below 1.5 pixels, so dense meshes do not turn black.
+ */
+typedef struct anistar_render_options {
+    int width, height;          /* pixels, 1..ANISTAR_RENDER_MAX_SIDE (1024 x 768) */
+    double azimuth, elevation;  /* degrees, finite (30, 20) */
+    int up;                     /* the vertical axis: 0 = x, 1 = y, 2 = z (2) */
+    anistar_color_by color;     /* per-triangle values (ANISTAR_COLOR_QUALITY) */
+    int edges;                  /* 1: draw the edges (1), 0: not */
+    int legend;                 /* 1: colour bar with min, middle, max and title (1) */
+    int supersample;            /* samples per pixel side, 1..4 (3) */
+    double range_min, range_max; /* colour range; both NaN (default): the min and max of
+                                    the finite values; else finite with min < max
+                                    (values outside are clamped to the ends) */
+    int compress;               /* 1: deflate (fixed Huffman codes) (1), 0: stored */
+    const char *sol_path;       /* anistar_render_file: a Medit .sol of per-vertex
+                                   tensors for ANISOTROPY (NULL); borrowed for the call */
+} anistar_render_options;
+
+/* Fill *opt with the defaults above. */
+ANISTAR_API void anistar_render_options_init(anistar_render_options *opt);
+
+/*
+ * Render the triangle mesh in the file mesh_path (.off .obj .ply .stl .mesh; PLY vertex
+ * properties m11 m12 m13 m22 m23 m33 are read as tensors) to the PNG file png_path.
+ * Tensors for ANISOTROPY come from opt->sol_path when given (they replace the PLY's).
+ * opt == NULL uses the defaults. Returns EINVAL (bad options, NULL paths), EIO (a file
+ * that cannot be read or written: the message names it; a partial PNG is removed),
+ * EFORMAT (a malformed mesh or .sol, a .sol whose vertex count differs), ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char *mesh_path,
+                                               const char *png_path,
+                                               const anistar_render_options *opt);
+
+/*
+ * Render a mesh given as arrays: nv vertices xyz (3 nv doubles), nt triangles tri
+ * (3 nt 0-based indices), tensors NULL or 6 nv doubles (m11 m12 m13 m22 m23 m33). When
+ * values is not NULL it holds nt per-triangle values that are drawn instead of
+ * opt->color (NaN: grey, +-inf: the ends of the colormap) and label titles the legend
+ * (NULL: none; letters, digits and . - + ( ) / _ : = are drawn, others as '?').
+ * nt == 0 gives an image of the background. EINVAL for bad options, a NULL array with
+ * a nonzero count, an index outside [0, nv), a non-finite coordinate; EIO; ENOMEM.
+ */
+ANISTAR_API anistar_status anistar_render_arrays(anistar_context *ctx, size_t nv,
+                                                 const double *xyz, size_t nt,
+                                                 const int32_t *tri, const double *tensors,
+                                                 const double *values, const char *label,
+                                                 const char *png_path,
+                                                 const anistar_render_options *opt);
+
+/*
+ * The per-triangle values of `by` (QUALITY or ANISOTROPY, as above) for the arrays of
+ * anistar_render_arrays, into out[nt]. EINVAL for NONE or an invalid mesh.
+ */
+ANISTAR_API anistar_status anistar_triangle_values(anistar_context *ctx, anistar_color_by by,
+                                                   size_t nv, const double *xyz, size_t nt,
+                                                   const int32_t *tri, const double *tensors,
+                                                   double *out);
+
 
 #ifdef __cplusplus
 }

@@ -910,3 +910,44 @@ ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const do
 ANISTAR_API void anistar_metric_free(anistar_metric *m) { as_field_free(m); }
 
 /* ==== END SURFACES AND METRIC FIELDS ==== */
+
+/* ==================================================================================== */
+/* What a file holds                                                                     */
+/* ==================================================================================== */
+
+#include "io/info.h"
+
+ANISTAR_API anistar_status anistar_mesh_file_info(anistar_context *ctx, const char *path,
+                                                  anistar_mesh_info *info) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!path || !info) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesh_file_info: NULL argument");
+    memset(info, 0, sizeof *info);
+    as_trimesh m;
+    as_trimesh_init(&m);
+    anistar_status s = as_mesh_read(ctx, path, &m);
+    if (s == ANISTAR_OK) {
+        s = as_trimesh_info(ctx, &m, info);
+        if (s != ANISTAR_OK) {
+            char msg[512];
+            snprintf(msg, sizeof msg, "%s", anistar_last_error(ctx));
+            as_fail(ctx, s, "%s: %s", path, msg);
+        }
+    }
+    as_trimesh_free(ctx, &m);
+    return s;
+}
+
+ANISTAR_API anistar_status anistar_image_file_info(anistar_context *ctx, const char *path,
+                                                   double iso, int inside,
+                                                   anistar_image_info *info) {
+    if (!ctx) return ANISTAR_EINVAL;
+    if (!path || !info)
+        return as_fail(ctx, ANISTAR_EINVAL, "anistar_image_file_info: NULL argument");
+    memset(info, 0, sizeof *info);
+    as_image *img = NULL;
+    anistar_status s = as_image_read(ctx, path, &img);
+    if (s != ANISTAR_OK) return s;
+    s = as_image_info(ctx, img, iso, inside, info);
+    as_image_free(ctx, img);
+    return s;
+}

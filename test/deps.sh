@@ -1,5 +1,6 @@
 #!/bin/sh
-# Make sure the test dependencies (GMP: exact oracle; cmocka: runner) are installed.
+# Make sure the test dependencies (GMP: exact oracle; cmocka: runner; pkg-config: the
+# install test) are installed.
 # Installs them with apt-get when they are missing and we run as root; otherwise prints
 # the exact command and fails.
 set -u
@@ -11,6 +12,7 @@ have_cmocka() {
         ${CC:-cc} -E -x c - >/dev/null 2>&1
 }
 have_cmocka || missing="$missing libcmocka-dev"
+command -v pkg-config >/dev/null 2>&1 || missing="$missing pkg-config"
 [ -z "$missing" ] && exit 0
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     echo "deps: installing$missing with apt-get" >&2

@@ -195,11 +195,52 @@ static void test_runtime_errors(void **state) {
     test_free(r);
 }
 
+/* A bounding sphere too small for S, or no surface inside it, is the surface's error
+ * (status ENOSURFACE, "surface: ..."), whatever layer first samples S: the default e_n of
+ * a curvature metric, or the mesher with a euclidean one; never a metric error. */
+static void test_surface_errors_are_surface_errors(void **state) {
+    (void)state;
+    const char *cases[][12] = {
+        {"mesh", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,1", "-o", "/tmp/anistar_cli_se.off", NULL},
+        {"mesh", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,1", "--metric", "euclidean", "-o",
+         "/tmp/anistar_cli_se.off", NULL},
+        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,1", "-o", "/tmp/anistar_cli_se.off", NULL},
+        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,1", "--metric", "hessian:x^2", "-o",
+         "/tmp/anistar_cli_se.off", NULL},
+    };
+    const char *want[] = {"must lie strictly inside the bounding sphere",
+                          "must lie strictly inside the bounding sphere",
+                          "no surface found inside the bounding sphere",
+                          "no surface found inside the bounding sphere"};
+    run_result *r = test_malloc(sizeof *r);
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        run(cases[i], r);
+        if (r->status != 1) fail_msg("case %zu: exit %d: %s", i, r->status, r->err);
+        assert_one_line(r);
+        if (strncmp(r->err, "anistar: surface: ", 18) || !strstr(r->err, want[i]) ||
+            strstr(r->err, "metric"))
+            fail_msg("case %zu: '%s'", i, r->err);
+    }
+    test_free(r);
+    /* the API: anistar_metric_from_spec passes the surface's status through */
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s = NULL;
+    anistar_metric *m = NULL;
+    const double c[3] = {0, 0, 0};
+    assert_int_equal(anistar_surface_from_expression(ctx, "x^2+y^2+z^2-4", c, 1, &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "curvature", &m), ANISTAR_ENOSURFACE);
+    assert_null(m);
+    assert_int_equal(strncmp(anistar_last_error(ctx), "surface: ", 9), 0);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_probe_torus),   cmocka_unit_test(test_probe_projection),
         cmocka_unit_test(test_help_version),  cmocka_unit_test(test_usage_errors),
         cmocka_unit_test(test_runtime_errors),
+        cmocka_unit_test(test_surface_errors_are_surface_errors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

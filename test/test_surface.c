@@ -470,7 +470,8 @@ static void test_no_surface(void **state) {
     as_surface_free(s);
     /* S not inside its bounding sphere */
     s = expression(ctx, "x^2+y^2+z^2-9", 2);
-    assert_int_equal(as_surface_sample(ctx, s, 16, &smp), ANISTAR_EINVAL);
+    assert_int_equal(as_surface_sample(ctx, s, 16, &smp), ANISTAR_ENOSURFACE);
+    assert_non_null(strstr(anistar_last_error(ctx), "surface: f < 0 at"));
     assert_non_null(strstr(anistar_last_error(ctx), "bounding sphere"));
     as_surface_free(s);
     /* bad bounding spheres and expressions */

@@ -610,12 +610,10 @@ anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_fie
 static anistar_status fl_defaults(anistar_context *ctx, as_field *fl, const char *spec,
                                   int need_eps, int need_en) {
     as_point_sample smp;
+    /* a sample that fails is the surface's error (no surface inside the bounding sphere,
+     * a sphere too small, f not finite): its status and message go through unchanged */
     anistar_status st = as_surface_sample(ctx, fl->surf, AS_FIELD_SAMPLE_POINTS, &smp);
-    if (st) {
-        char msg[AS_ERRMSG_SIZE];
-        snprintf(msg, sizeof msg, "%s", ctx->last_error);
-        return as_fail(ctx, st, "metric: cannot sample the surface for default e_n: %s", msg);
-    }
+    if (st) return st;
     int sl = clip_len(strlen(spec));
     if (need_eps) {
         double raw = 0;

@@ -1204,9 +1204,9 @@ static anistar_status sm_values(sm_state *st) {
             double fx = fs_value(s, x);
             if (!isfinite(fx)) return fail_nonfinite(ctx, "f", x);
             if (fx < 0)
-                return as_fail(ctx, ANISTAR_EINVAL,
-                               "f < 0 at (%.9g, %.9g, %.9g) on the bounding sphere: the "
-                               "surface must lie strictly inside the bounding sphere "
+                return as_fail(ctx, ANISTAR_ENOSURFACE,
+                               "surface: f < 0 at (%.9g, %.9g, %.9g) on the bounding sphere: "
+                               "the surface must lie strictly inside the bounding sphere "
                                "(enlarge its radius)",
                                x[0], x[1], x[2]);
         }
@@ -2449,7 +2449,7 @@ anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, siz
     if (rs) goto done;
     if (st.ncomp == 0) {
         rs = as_fail(ctx, ANISTAR_ENOSURFACE,
-                     "no surface found inside the bounding sphere (center %g %g %g, radius "
+                     "surface: no surface found inside the bounding sphere (center %g %g %g, radius "
                      "%g): f keeps one sign on a %zu^3 grid (spacing %g) and near its "
                      "vertices where it bends",
                      s->center[0], s->center[1], s->center[2], s->radius, st.g.nv, st.g.h);

@@ -334,6 +334,7 @@ static void test_vtk_round_trip(void **state) {
     }
     /* the old POLYDATA form (a quad as a polygon: two triangles), with attributes skipped */
     const char *old = "# vtk DataFile Version 3.0\nold\nASCII\nDATASET POLYDATA\n"
+                      "FIELD FieldData 1\nTIME 1 1 double\n2.5\n"
                       "POINTS 5 float\n0 0 0 1 0 0 1 1 0 0 1 0 0 0 1\n"
                       "POLYGONS 2 9\n4 0 1 2 3\n3 0 1 4\n"
                       "CELL_DATA 2\nSCALARS quality double 1\nLOOKUP_TABLE default\n1 2\n"

@@ -439,11 +439,7 @@ static anistar_status vtk_attribute(vtk_reader *r, const char *kw, size_t kwlen)
     char show[32];
     const char *tok, *aname;
     size_t len, alen;
-    if (!r->attr)
-        return as_text_fail(&r->t, "'%s' outside POINT_DATA or CELL_DATA",
-                            as_token_show(kw, kwlen, show));
-    uint64_t n = r->attr_n;
-    if (as_token_is(kw, kwlen, "FIELD")) {
+    if (as_token_is(kw, kwlen, "FIELD")) { /* anywhere: each array has its own count */
         uint64_t na;
         as_text_token(&r->t, &tok); /* the field's name */
         if ((st = vtk_count(r, "array count", &na))) return st;
@@ -462,6 +458,10 @@ static anistar_status vtk_attribute(vtk_reader *r, const char *kw, size_t kwlen)
         }
         return ANISTAR_OK;
     }
+    if (!r->attr)
+        return as_text_fail(&r->t, "unknown keyword '%s' (or an attribute outside POINT_DATA "
+                            "and CELL_DATA)", as_token_show(kw, kwlen, show));
+    uint64_t n = r->attr_n;
     alen = as_text_token(&r->t, &aname);
     if (alen == 0) return as_text_fail(&r->t, "an attribute without a name");
     int metric_name = as_token_is(aname, alen, "metric");

@@ -84,7 +84,8 @@ static int file_kind(const char *path) {
         const char *ext;
         int kind;
     } exts[] = {{"off", FILE_MESH},   {"obj", FILE_MESH},   {"ply", FILE_MESH},
-                {"stl", FILE_MESH},   {"mesh", FILE_MESH},  {"inr", FILE_IMAGE},
+                {"stl", FILE_MESH},   {"mesh", FILE_MESH},  {"meshb", FILE_MESH},
+                {"vtk", FILE_MESH},   {"vtu", FILE_MESH},   {"inr", FILE_IMAGE},
                 {"nrrd", FILE_IMAGE}, {"nhdr", FILE_IMAGE}, {"mha", FILE_IMAGE},
                 {"mhd", FILE_IMAGE}};
     for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++) {
@@ -185,8 +186,8 @@ static int surface_check(const surface_opts *so) {
     }
     int kind = so->file ? file_kind(so->file) : FILE_UNKNOWN;
     if (so->file && kind == FILE_UNKNOWN) {
-        say("%s: unknown SURFACE file extension (expected a mesh .off .obj .ply .stl .mesh or "
-            "an image .inr .nrrd .nhdr .mha .mhd)",
+        say("%s: unknown SURFACE file extension (expected a mesh .off .obj .ply .stl .mesh "
+            ".meshb .vtk .vtu or an image .inr .nrrd .nhdr .mha .mhd)",
             so->file);
         return -1;
     }
@@ -725,7 +726,7 @@ static int cmd_render(int argc, char **argv) {
         }
     }
     if (!mesh) {
-        say("render needs a MESH file (.off .obj .ply .stl .mesh)");
+        say("render needs a MESH file (.off .obj .ply .stl .mesh .meshb .vtk .vtu)");
         return EXIT_USAGE;
     }
     if (!out) {
@@ -736,8 +737,10 @@ static int cmd_render(int argc, char **argv) {
         say("render: the output '%s' must end with .png", out);
         return EXIT_USAGE;
     }
+    /* --sol alone means --color anisotropy; another explicit --color contradicts it */
+    if (opt.sol_path && !seen[1]) opt.color = ANISTAR_COLOR_ANISOTROPY;
     if (opt.sol_path && opt.color != ANISTAR_COLOR_ANISOTROPY) {
-        say("--sol goes with --color anisotropy");
+        say("--sol goes with --color anisotropy (its default when --color is not given)");
         return EXIT_USAGE;
     }
     anistar_context *ctx = anistar_context_new(NULL);
@@ -796,7 +799,8 @@ static void json_string_to(FILE *f, const char *s) {
 
 /* The output formats of -o (anistar_mesh_write picks the writer by extension). */
 static int mesh_output_ok(const char *path) {
-    static const char *const exts[] = {".off", ".obj", ".ply", ".stl", ".mesh", ".vtk", ".vtu"};
+    static const char *const exts[] = {".off", ".obj", ".ply", ".stl", ".mesh", ".meshb",
+                                       ".vtk", ".vtu"};
     for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++)
         if (has_extension(path, exts[i])) return 1;
     return 0;
@@ -1095,7 +1099,7 @@ static int cmd_mesh(int argc, char **argv) {
         } else if (!strcmp(a, "-o")) {
             if (!mesh_output_ok(v)) {
                 say("-o '%s': unknown output extension (expected .off .obj .ply .stl .mesh "
-                    ".vtk .vtu)",
+                    ".meshb .vtk .vtu)",
                     v);
                 return EXIT_USAGE;
             }
@@ -1115,11 +1119,11 @@ static int cmd_mesh(int argc, char **argv) {
     }
     if (surface_check(&so)) return EXIT_USAGE;
     if (nouts == 0) {
-        say("mesh needs -o OUT (.off .obj .ply .stl .mesh .vtk .vtu)");
+        say("mesh needs -o OUT (.off .obj .ply .stl .mesh .meshb .vtk .vtu)");
         return EXIT_USAGE;
     }
-    if (sol && !has_extension(sol, ".sol")) {
-        say("--sol: the output '%s' must end with .sol", sol);
+    if (sol && !has_extension(sol, ".sol") && !has_extension(sol, ".solb")) {
+        say("--sol: the output '%s' must end with .sol or .solb", sol);
         return EXIT_USAGE;
     }
     if (!metric) metric = "curvature";
@@ -1248,12 +1252,12 @@ static const command commands[] = {
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
              "                 [--max-stall N] [--seed N] [--pick-tries N] [--hmin H]\n"
              "                 [--hmax H] [--aniso-cap 0|1] [--optimize]\n"
-             "                 [--quiet] [--sol FILE.sol] [--stats FILE.json]\n"
+             "                 [--quiet] [--sol FILE.sol|.solb] [--stats FILE.json]\n"
              "                 -o OUT [-o OUT2 ...]",
      cmd_mesh},
     {"render", "render MESH -o OUT.png [--color quality|anisotropy|none] [--view AZ,EL]\n"
                "                 [--size WxH] [--edges on|off] [--up x|y|z] [--range MIN,MAX]\n"
-               "                 [--sol FILE.sol]",
+               "                 [--sol FILE.sol|.solb]",
      cmd_render},
 };
 #define NCOMMANDS (sizeof commands / sizeof commands[0])
@@ -1272,8 +1276,10 @@ static void help(void) {
            "Otsu's threshold, 6-connected components of the voxels inside --iso V, default\n"
            "Otsu's); plain text, or JSON with --json.\n\n"
            "mesh builds an anisotropic Delaunay mesh of SURFACE for --metric (default\n"
-           "curvature) and writes every -o OUT by extension (.off .obj .ply .stl .mesh .vtk\n"
-           ".vtu); --sol writes the vertex tensors (Medit), --stats a JSON of statistics.\n"
+           "curvature) and writes every -o OUT by extension (.off .obj .ply .stl .mesh .meshb\n"
+           ".vtk .vtu; .vtk .vtu .ply also carry the vertex tensors and, per triangle,\n"
+           "radius_edge and anisotropy); --sol writes the vertex tensors (Medit .sol or\n"
+           "binary .solb), --stats a JSON of statistics.\n"
            "Defaults: r0 0.1, gamma0 1.5, rho0 3, beta 2.5, delta 0.3, approx 0 (off),\n"
            "max-vertices 1000000 (0: the hard limit 2096128 = 2^21 - 1024, not 'no limit';\n"
            "a run whose up-front estimate exceeds it is refused, status 1), max-seconds 0\n"
@@ -1290,7 +1296,8 @@ static void help(void) {
            "a second signal kills.\n\n"
            "render draws a triangle mesh to a PNG image, each triangle coloured by --color:\n"
            "quality (radius-edge ratio, the default), anisotropy (sqrt(lmax/lmin) of the\n"
-           "vertex tensors of a PLY or of --sol, else the triangle's aspect ratio) or none;\n"
+           "vertex tensors of a PLY, VTK or VTU file or of --sol, which implies this mode;\n"
+           "else the triangle's aspect ratio) or none;\n"
            "--view AZ,EL in degrees (default 30,20) around the --up axis (default z);\n"
            "--size WxH (default 1024x768); --range MIN,MAX fixes the colour range.\n\n"
            "SURFACE:\n"
@@ -1298,7 +1305,7 @@ static void help(void) {
            "                                        sphere; EXPR e.g. \"R=10; r=1; "
            "(sqrt(x^2+y^2)-R)^2+z^2-r^2\"\n"
            "  --builtin NAME[,PARAM=V...][,bound=R]  a built-in surface (below)\n"
-           "  FILE.off|.obj|.ply|.stl|.mesh          a closed triangle mesh\n"
+           "  FILE.off|.obj|.ply|.stl|.mesh|.meshb|.vtk|.vtu  a closed triangle mesh\n"
            "  FILE.inr|.nrrd|.nhdr|.mha|.mhd [--iso V] [--inside greater|less]\n"
            "                                        an isosurface of a 3D image (inside:\n"
            "                                        values greater than V, the default;\n"
@@ -1306,7 +1313,7 @@ static void help(void) {
            "--metric SPEC:\n"
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"
-           "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol[,rb=R] (meshes)\n"
+           "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol|.solb[,rb=R] (meshes)\n"
            "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R (blending),\n"
            "  grad=G (gradation, G > 1: sizes grow by at most 1 + l ln G over metric length l;\n"
            "  sol takes grad=G too)\n\n"

@@ -265,11 +265,11 @@ ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **n
 
 /*
  * A closed triangle mesh read from a file, the format chosen by the extension
- * (case-insensitive): .off .obj .ply .stl .mesh (Medit). The mesh must be a closed,
- * orientable 2-manifold without zero-area triangles; its triangles are reoriented
- * consistently (outward) and vertices of no triangle are ignored. Triangle-mesh surfaces
- * have no function f: anistar_surface_eval gives the signed distance to the mesh
- * (negative inside) and its gradient, and no Hessian (ANISTAR_EINVAL if h is asked);
+ * (case-insensitive): .off .obj .ply .stl .mesh .meshb (Medit) .vtk .vtu. The mesh must
+ * be a closed, orientable 2-manifold without zero-area triangles; its triangles are
+ * reoriented consistently (outward) and vertices of no triangle are ignored.
+ * Triangle-mesh surfaces have no function f: anistar_surface_eval gives the signed
+ * distance to the mesh (negative inside) and its gradient, and no Hessian (ANISTAR_EINVAL if h is asked);
  * side, crossing and projection are exact queries on the triangles (the projection is
  * the closest point of the mesh); normals, curvatures and directions come from
  * per-vertex polynomial fits ("jets", degree 2 on the 16 nearest vertices, paper 5.2.3)
@@ -759,7 +759,9 @@ ANISTAR_API void anistar_mesh_get_triangles(const anistar_mesh *mesh, int32_t *t
 ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tensors);
 ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats);
 /* Write the mesh, the format chosen by the extension of path: .off .obj .ply .stl .mesh
- * .vtk .vtu (with the tensors where the format holds them) or .sol (the tensors alone).
+ * .meshb .vtk .vtu (with the tensors where the format holds them; .vtk .vtu .ply also get
+ * the per-triangle fields "radius_edge" and "anisotropy", see docs/formats.md) or .sol
+ * .solb (the tensors alone).
  * ctx receives the message (NULL: the mesh's context). ANISTAR_EFORMAT for an unknown
  * extension, ANISTAR_EIO, ANISTAR_EINVAL (e.g. .stl with coordinates beyond float). */
 ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
@@ -915,7 +917,7 @@ typedef struct anistar_render_options {
                                     the finite values; else finite with min < max
                                     (values outside are clamped to the ends) */
     int compress;               /* 1: deflate (fixed Huffman codes) (1), 0: stored */
-    const char *sol_path;       /* anistar_render_file: a Medit .sol of per-vertex
+    const char *sol_path;       /* anistar_render_file: a Medit .sol/.solb of per-vertex
                                    tensors for ANISOTROPY (NULL); borrowed for the call */
 } anistar_render_options;
 
@@ -923,9 +925,10 @@ typedef struct anistar_render_options {
 ANISTAR_API void anistar_render_options_init(anistar_render_options *opt);
 
 /*
- * Render the triangle mesh in the file mesh_path (.off .obj .ply .stl .mesh; PLY vertex
- * properties m11 m12 m13 m22 m23 m33 are read as tensors) to the PNG file png_path.
- * Tensors for ANISOTROPY come from opt->sol_path when given (they replace the PLY's).
+ * Render the triangle mesh in the file mesh_path (.off .obj .ply .stl .mesh .meshb .vtk
+ * .vtu; PLY vertex properties m11 m12 m13 m22 m23 m33 and the VTK point tensor "metric"
+ * are read as tensors) to the PNG file png_path. Tensors for ANISOTROPY come from
+ * opt->sol_path when given (they replace the file's).
  * opt == NULL uses the defaults. Returns EINVAL (bad options, NULL paths), EIO (a file
  * that cannot be read or written: the message names it; a partial PNG is removed),
  * EFORMAT (a malformed mesh or .sol, a .sol whose vertex count differs), ENOMEM.

@@ -384,12 +384,41 @@ ANISTAR_API void anistar_mesh_get_metrics(const anistar_mesh *mesh, double *tens
 ANISTAR_API void anistar_mesh_get_stats(const anistar_mesh *mesh, anistar_mesh_stats *stats) {
     if (mesh && stats) *stats = mesh->stats;
 }
+static anistar_status as_api_tri_values(anistar_context *ctx, anistar_color_by by, size_t nv,
+                                        const double *xyz, size_t nt, const int32_t *tri,
+                                        const double *tensors, double *out);
+
+/*
+ * design: formats with cell data (.vtk .vtu .ply) get two per-triangle fields:
+ *   "radius_edge" (the mesher's rho, the largest over the three vertex metrics) and
+ *   "anisotropy" (the largest sqrt(lambda_max/lambda_min) of the three vertex tensors, as
+ *   anistar_triangle_values / render --color anisotropy); a non-finite value (a degenerate
+ *   triangle, never in a certified mesh) is written as -1.
+ */
 ANISTAR_API anistar_status anistar_mesh_write(anistar_context *ctx, const anistar_mesh *mesh,
                                               const char *path) {
     if (!mesh) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesh_write: mesh is NULL");
     if (!ctx) ctx = mesh->ctx;
     if (!path) return as_fail(ctx, ANISTAR_EINVAL, "anistar_mesh_write: path is NULL");
-    return as_mesh_write(ctx, path, &mesh->tm, NULL, 0);
+    as_mesh_format fmt = as_mesh_format_of(path);
+    const as_trimesh *tm = &mesh->tm;
+    if ((fmt != AS_FMT_VTK && fmt != AS_FMT_VTU && fmt != AS_FMT_PLY) || tm->nt == 0 ||
+        !tm->tensor || mesh->nrho != tm->nt)
+        return as_mesh_write(ctx, path, tm, NULL, 0);
+    double *vals = as_alloc_array(ctx, tm->nt, 2 * sizeof(double));
+    if (!vals) return as_fail(ctx, ANISTAR_ENOMEM, "%s: out of memory for the cell data", path);
+    double *rho = vals, *aniso = vals + tm->nt;
+    memcpy(rho, mesh->rho, tm->nt * sizeof *rho);
+    anistar_status st = as_api_tri_values(ctx, ANISTAR_COLOR_ANISOTROPY, tm->nv, tm->xyz, tm->nt,
+                                          tm->tri, tm->tensor, aniso);
+    if (!st) {
+        for (size_t i = 0; i < 2 * tm->nt; i++)
+            if (!isfinite(vals[i])) vals[i] = -1;
+        as_cell_field cells[2] = {{"radius_edge", rho}, {"anisotropy", aniso}};
+        st = as_mesh_write(ctx, path, tm, cells, 2);
+    }
+    as_free(ctx, vals, tm->nt * 2 * sizeof(double));
+    return st;
 }
 ANISTAR_API void anistar_mesh_free(anistar_mesh *mesh) { as_mesh_free(mesh); }
 
@@ -591,7 +620,7 @@ ANISTAR_API anistar_status anistar_render_file(anistar_context *ctx, const char 
     as_trimesh_init(&m);
     st = as_mesh_read(ctx, mesh_path, &m);
     if (!st && opt->sol_path && opt->color == ANISTAR_COLOR_ANISOTROPY)
-        st = as_trimesh_read_sol(ctx, opt->sol_path, &m);
+        st = as_trimesh_read_sol(ctx, opt->sol_path, &m); /* .sol or .solb */
     if (!st)
         st = as_api_render(ctx, &p, opt, m.nv, m.xyz, m.nt, m.tri, m.tensor, NULL, NULL,
                            png_path);

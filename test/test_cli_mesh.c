@@ -120,6 +120,32 @@ static void test_mesh_sphere(void **state) {
     assert_true(strtol(p + strlen("SolAtVertices"), NULL, 10) == nv);
     free(so);
     assert_string_equal(r->out, "");
+    /* render reads our .vtu (its metric) and --sol alone implies --color anisotropy: the
+     * three images are the same bytes */
+    const char *png[3] = {"/tmp/anistar_clim_1.png", "/tmp/anistar_clim_2.png",
+                          "/tmp/anistar_clim_3.png"};
+    const char *r1[] = {"render", vtu, "-o", png[0], "--color", "anisotropy", "--size", "96x64",
+                        NULL};
+    const char *r2[] = {"render", off, "-o", png[1], "--sol", sol, "--size", "96x64", NULL};
+    const char *r3[] = {"render", off, "-o", png[2], "--sol", sol, "--color", "anisotropy",
+                        "--size", "96x64", NULL};
+    const char *const *rr[3] = {r1, r2, r3};
+    size_t len[3];
+    char *img[3];
+    for (int k = 0; k < 3; k++) {
+        run(rr[k], r);
+        if (r->status != 0) fail_msg("render %d: exit %d, stderr '%s'", k, r->status, r->err);
+        FILE *f = fopen(png[k], "rb");
+        assert_non_null(f);
+        img[k] = malloc(1 << 20);
+        len[k] = fread(img[k], 1, 1 << 20, f);
+        fclose(f);
+        unlink(png[k]);
+    }
+    assert_true(len[0] > 100 && len[0] == len[1] && len[1] == len[2]);
+    assert_memory_equal(img[0], img[1], len[0]);
+    assert_memory_equal(img[1], img[2], len[0]);
+    for (int k = 0; k < 3; k++) free(img[k]);
     unlink(off), unlink(vtu), unlink(sol), unlink(json);
     test_free(r);
 }

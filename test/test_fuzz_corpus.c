@@ -80,6 +80,10 @@ static void test_corpus_inr(void **state) { (void)state; fc_replay(FT_INR); }
 static void test_corpus_nrrd(void **state) { (void)state; fc_replay(FT_NRRD); }
 static void test_corpus_metaimage(void **state) { (void)state; fc_replay(FT_METAIMAGE); }
 static void test_corpus_expr(void **state) { (void)state; fc_replay(FT_EXPR); }
+static void test_corpus_vtk(void **state) { (void)state; fc_replay(FT_VTK); }
+static void test_corpus_vtu(void **state) { (void)state; fc_replay(FT_VTU); }
+static void test_corpus_meshb(void **state) { (void)state; fc_replay(FT_MESHB); }
+static void test_corpus_solb(void **state) { (void)state; fc_replay(FT_SOLB); }
 
 /* The harness itself: the name table round-trips (the directory names select the
  * readers), an invalid reader is reported, the counting allocator sees a block that is
@@ -119,7 +123,9 @@ int main(void) {
         cmocka_unit_test(test_corpus_stl),         cmocka_unit_test(test_corpus_medit),
         cmocka_unit_test(test_corpus_sol),         cmocka_unit_test(test_corpus_inr),
         cmocka_unit_test(test_corpus_nrrd),        cmocka_unit_test(test_corpus_metaimage),
-        cmocka_unit_test(test_corpus_expr),
+        cmocka_unit_test(test_corpus_expr),        cmocka_unit_test(test_corpus_vtk),
+        cmocka_unit_test(test_corpus_vtu),         cmocka_unit_test(test_corpus_meshb),
+        cmocka_unit_test(test_corpus_solb),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -527,18 +527,21 @@ static void check_vtk(const char *path, const as_trimesh *m, const as_cell_field
     size_t n;
     char *text = slurp(path, &n), *p = text;
     expect_word(&p, "# vtk DataFile Version 3.0\n");
-    p = strstr(p, "ASCII\nDATASET POLYDATA\n");
+    p = strstr(p, "ASCII\nDATASET UNSTRUCTURED_GRID\n");
     assert_non_null(p);
     char head[64];
     snprintf(head, sizeof head, "POINTS %zu double", m->nv);
     p = strstr(p, head) + strlen(head);
     for (size_t i = 0; i < 3 * m->nv; i++) assert_true(next_num(&p) == m->xyz[i]);
-    snprintf(head, sizeof head, "POLYGONS %zu %zu", m->nt, 4 * m->nt);
+    snprintf(head, sizeof head, "CELLS %zu %zu", m->nt, 4 * m->nt);
     expect_word(&p, head);
     for (size_t i = 0; i < m->nt; i++) {
         assert_true(next_num(&p) == 3);
         for (int k = 0; k < 3; k++) assert_true(next_num(&p) == m->tri[3 * i + k]);
     }
+    snprintf(head, sizeof head, "CELL_TYPES %zu", m->nt);
+    expect_word(&p, head);
+    for (size_t i = 0; i < m->nt; i++) assert_true(next_num(&p) == 5);
     if (m->tensor) {
         snprintf(head, sizeof head, "POINT_DATA %zu", m->nv);
         expect_word(&p, head);
@@ -1511,7 +1514,9 @@ static void test_files_missing_empty_dir(void **state) {
     assert_int_equal(as_mesh_format_of("a.b/c"), AS_FMT_UNKNOWN);
     assert_int_equal(as_mesh_format_of("x.VTU"), AS_FMT_VTU);
     assert_int_equal(as_mesh_format_of("x.mesh"), AS_FMT_MESH);
-    assert_int_equal(as_mesh_format_of("x.meshb"), AS_FMT_UNKNOWN);
+    assert_int_equal(as_mesh_format_of("x.meshb"), AS_FMT_MESHB);
+    assert_int_equal(as_mesh_format_of("x.SOLB"), AS_FMT_SOLB);
+    assert_int_equal(as_mesh_format_of("x.meshbb"), AS_FMT_UNKNOWN);
     tdir_clean(&d);
     tctx_done(&t);
 }

@@ -1306,7 +1306,7 @@ static void test_cli(void **state) {
         {"render", KNOT, KNOT, "-o", out, NULL},
         {"render", KNOT, "-o", out, "--range", "2,1", NULL},
         {"render", KNOT, "-o", out, "--up", "w", NULL},
-        {"render", KNOT, "-o", out, "--sol", "x.sol", NULL},
+        {"render", KNOT, "-o", out, "--color", "quality", "--sol", "x.sol", NULL},
         {"render", KNOT, "-o", NULL},
     };
     for (size_t i = 0; i < sizeof usage / sizeof usage[0]; i++) {

@@ -9,7 +9,7 @@
  * other by skipping numbers up to the next keyword; End (optional) stops reading.
  *
  * .sol: SolAtVertices, n, the number of fields and their types (1 scalar, 2 vector,
- * 3 symmetric tensor), n rows of values. Medit stores a symmetric tensor as
+ * 3 symmetric tensor, 4 full matrix: skipped), n rows of values. Medit stores a symmetric tensor as
  * m11 m12 m22 m13 m23 m33 (lower triangle by rows); we convert to m11 m12 m13 m22 m23 m33.
  */
 #include "io/meshio.h"
@@ -214,6 +214,35 @@ fail:
     return st;
 }
 
+int as_sol_pick(const int64_t *types, size_t nf, int *width, int *off, int *type) {
+    int w = 0, pick = -1;
+    *off = 0;
+    *type = 0;
+    for (size_t f = 0; f < nf; f++) {
+        int64_t ty = types[f];
+        if (ty < 1 || ty > 4) return -1;
+        if ((ty == 3 && *type != 3) || (ty == 1 && *type == 0)) {
+            pick = (int)f;
+            *off = w;
+            *type = (int)ty;
+        }
+        w += ty == 1 ? 1 : ty == 2 ? 3 : ty == 3 ? 6 : 9;
+    }
+    *width = w;
+    return pick < 0 ? -2 : 0;
+}
+
+int as_sol_tensor(int type, const double *s, double o[6]) {
+    if (type == 3) {
+        o[0] = s[0], o[1] = s[1], o[2] = s[3], o[3] = s[2], o[4] = s[4], o[5] = s[5];
+        return 0;
+    }
+    double h = s[0], e = 1.0 / (h * h);
+    if (!(h > 0) || !isfinite(e) || e == 0) return -1;
+    o[0] = e, o[1] = 0, o[2] = 0, o[3] = e, o[4] = 0, o[5] = e;
+    return 0;
+}
+
 /*
  * design: keyword loop as for .mesh; SolAtVertices: count, field count and types, checked
  *   against the remaining bytes (2 bytes per value) before allocation; the first tensor
@@ -266,23 +295,17 @@ anistar_status as_sol_parse(anistar_context *ctx, const char *name, const char *
                               "fields)", (long long)n, (long long)nf);
             goto fail;
         }
-        int width = 0, pick = -1, pick_off = 0, pick_type = 0;
-        for (int64_t f = 0; f < nf; f++) {
-            int64_t ty;
-            if ((st = as_text_int(&t, 1, "a field type", &ty))) goto fail;
-            if (ty < 1 || ty > 3) {
-                st = as_text_fail(&t, "unknown solution type %lld (1 scalar, 2 vector, 3 "
-                                  "tensor)", (long long)ty);
-                goto fail;
-            }
-            if ((ty == 3 && pick_type != 3) || (ty == 1 && pick_type == 0)) {
-                pick = (int)f;
-                pick_off = width;
-                pick_type = (int)ty;
-            }
-            width += ty == 1 ? 1 : ty == 2 ? 3 : 6;
+        int64_t types[64];
+        for (int64_t f = 0; f < nf; f++)
+            if ((st = as_text_int(&t, 1, "a field type", &types[f]))) goto fail;
+        int width = 0, pick_off = 0, pick_type = 0;
+        int pk = as_sol_pick(types, (size_t)nf, &width, &pick_off, &pick_type);
+        if (pk == -1) {
+            st = as_text_fail(&t, "unknown solution type (1 scalar, 2 vector, 3 symmetric "
+                              "tensor, 4 matrix)");
+            goto fail;
         }
-        if (pick < 0) {
+        if (pk == -2) {
             st = as_text_fail(&t, "no scalar or tensor field (vectors cannot be metrics)");
             goto fail;
         }
@@ -305,17 +328,10 @@ anistar_status as_sol_parse(anistar_context *ctx, const char *name, const char *
                 if ((st = as_text_double(&t, 1, "a solution value", &x))) goto fail;
                 if (k >= pick_off && k < pick_off + (pick_type == 3 ? 6 : 1)) s[k - pick_off] = x;
             }
-            double *o = m + 6 * i;
-            if (pick_type == 3) {
-                o[0] = s[0], o[1] = s[1], o[2] = s[3], o[3] = s[2], o[4] = s[4], o[5] = s[5];
-            } else {
-                double h = s[0], e = 1.0 / (h * h);
-                if (!(h > 0) || !isfinite(e) || e == 0) {
-                    st = as_text_fail(&t, "vertex %zu: size %g is not positive (or its metric "
-                                      "h^-2 overflows)", i + 1, h);
-                    goto fail;
-                }
-                o[0] = e, o[1] = 0, o[2] = 0, o[3] = e, o[4] = 0, o[5] = e;
+            if (as_sol_tensor(pick_type, s, m + 6 * i)) {
+                st = as_text_fail(&t, "vertex %zu: size %g is not positive (or its metric "
+                                  "h^-2 overflows)", i + 1, s[0]);
+                goto fail;
             }
         }
     }

@@ -175,7 +175,8 @@ as_mesh_format as_mesh_format_of(const char *path) {
         as_mesh_format fmt;
     } table[] = {{"off", AS_FMT_OFF}, {"obj", AS_FMT_OBJ},   {"ply", AS_FMT_PLY},
                  {"stl", AS_FMT_STL}, {"mesh", AS_FMT_MESH}, {"sol", AS_FMT_SOL},
-                 {"vtk", AS_FMT_VTK}, {"vtu", AS_FMT_VTU}};
+                 {"vtk", AS_FMT_VTK}, {"vtu", AS_FMT_VTU},   {"meshb", AS_FMT_MESHB},
+                 {"solb", AS_FMT_SOLB}};
     for (size_t i = 0; i < sizeof table / sizeof table[0]; i++)
         if (as_token_is(ext, n, table[i].ext)) return table[i].fmt;
     return AS_FMT_UNKNOWN;
@@ -195,9 +196,12 @@ anistar_status as_mesh_parse(anistar_context *ctx, as_mesh_format fmt, const cha
     case AS_FMT_PLY: return as_ply_parse(ctx, name, data, size, out);
     case AS_FMT_STL: return as_stl_parse(ctx, name, data, size, out);
     case AS_FMT_MESH: return as_medit_parse(ctx, name, data, size, out);
+    case AS_FMT_MESHB: return as_meshb_parse(ctx, name, data, size, out);
+    case AS_FMT_VTK: return as_vtk_parse(ctx, name, data, size, out);
+    case AS_FMT_VTU: return as_vtu_parse(ctx, name, data, size, out);
     default:
         return as_fail(ctx, ANISTAR_EFORMAT, "%s: cannot read a triangle mesh from %s%s%s "
-                       "(expected .off .obj .ply .stl .mesh)", name,
+                       "(expected .off .obj .ply .stl .mesh .meshb .vtk .vtu)", name,
                        *ext_of(name) ? "a '" : "a file without extension",
                        ext_of(name), *ext_of(name) ? "' file" : "");
     }
@@ -206,7 +210,7 @@ anistar_status as_mesh_parse(anistar_context *ctx, as_mesh_format fmt, const cha
 anistar_status as_mesh_read(anistar_context *ctx, const char *path, as_trimesh *out) {
     as_mesh_format fmt = as_mesh_format_of(path);
     if (fmt != AS_FMT_OFF && fmt != AS_FMT_OBJ && fmt != AS_FMT_PLY && fmt != AS_FMT_STL &&
-        fmt != AS_FMT_MESH)
+        fmt != AS_FMT_MESH && fmt != AS_FMT_MESHB && fmt != AS_FMT_VTK && fmt != AS_FMT_VTU)
         return as_mesh_parse(ctx, fmt, path, "", 0, out); /* the message for the extension */
     char *data;
     size_t size;
@@ -225,7 +229,9 @@ anistar_status as_sol_read(anistar_context *ctx, const char *path, size_t *count
     size_t size;
     anistar_status st = as_file_read(ctx, path, &data, &size);
     if (st) return st;
-    st = as_sol_parse(ctx, path, data, size, count, tensor);
+    st = as_mesh_format_of(path) == AS_FMT_SOLB
+             ? as_solb_parse(ctx, path, data, size, count, tensor)
+             : as_sol_parse(ctx, path, data, size, count, tensor);
     as_file_free(ctx, data, size);
     return st;
 }
@@ -262,10 +268,10 @@ anistar_status as_mesh_write(anistar_context *ctx, const char *path, const as_tr
     as_mesh_format fmt = as_mesh_format_of(path);
     if (fmt == AS_FMT_UNKNOWN)
         return as_fail(ctx, ANISTAR_EFORMAT, "%s: unknown extension '%s' (expected .off .obj "
-                       ".ply .stl .mesh .sol .vtk .vtu)", path, ext_of(path));
+                       ".ply .stl .mesh .meshb .sol .solb .vtk .vtu)", path, ext_of(path));
     anistar_status st = as_trimesh_check(ctx, path, m);
     if (st) return st;
-    if (fmt == AS_FMT_VTK || fmt == AS_FMT_VTU) {
+    if (fmt == AS_FMT_VTK || fmt == AS_FMT_VTU || fmt == AS_FMT_PLY) {
         if (ncells && !cells)
             return as_fail(ctx, ANISTAR_EINVAL, "%s: cell fields missing", path);
         for (size_t k = 0; k < ncells; k++) {
@@ -275,6 +281,14 @@ anistar_status as_mesh_write(anistar_context *ctx, const char *path, const as_tr
             if (strcmp(cells[k].name, "metric") == 0 && m->tensor)
                 return as_fail(ctx, ANISTAR_EINVAL, "%s: cell field name 'metric' is taken",
                                path);
+            if (fmt == AS_FMT_PLY && (strcmp(cells[k].name, "vertex_indices") == 0 ||
+                                      strcmp(cells[k].name, "vertex_index") == 0))
+                return as_fail(ctx, ANISTAR_EINVAL, "%s: cell field name '%s' is taken", path,
+                               cells[k].name);
+            for (size_t j = 0; j < k; j++)
+                if (strcmp(cells[j].name, cells[k].name) == 0)
+                    return as_fail(ctx, ANISTAR_EINVAL, "%s: two cell fields named '%s'", path,
+                                   cells[k].name);
             if (m->nt && !cells[k].values)
                 return as_fail(ctx, ANISTAR_EINVAL, "%s: cell field '%s' has no values", path,
                                cells[k].name);
@@ -287,10 +301,12 @@ anistar_status as_mesh_write(anistar_context *ctx, const char *path, const as_tr
     switch (fmt) {
     case AS_FMT_OFF: return as_off_write(ctx, path, m);
     case AS_FMT_OBJ: return as_obj_write(ctx, path, m);
-    case AS_FMT_PLY: return as_ply_write(ctx, path, m);
+    case AS_FMT_PLY: return as_ply_write(ctx, path, m, cells, ncells);
     case AS_FMT_STL: return as_stl_write(ctx, path, m);
     case AS_FMT_MESH: return as_medit_write(ctx, path, m);
     case AS_FMT_SOL: return as_sol_write(ctx, path, m);
+    case AS_FMT_MESHB: return as_meshb_write(ctx, path, m, 0);
+    case AS_FMT_SOLB: return as_solb_write(ctx, path, m, 0);
     case AS_FMT_VTK: return as_vtk_write(ctx, path, m, cells, ncells);
     case AS_FMT_VTU: return as_vtu_write(ctx, path, m, cells, ncells);
     default: return as_fail(ctx, ANISTAR_EINTERNAL, "%s: unhandled format", path);

@@ -3,10 +3,11 @@
  * layer). Knows nothing of surfaces, metrics or meshing: a mesh here is arrays of
  * coordinates, 0-based triangle indices and (optionally) per-vertex tensors.
  *
- * Readers (by extension, case-insensitive): .off .obj .ply .stl .mesh, and .sol for
- * per-vertex tensors. Writers: the same plus .vtk (legacy, ASCII) and .vtu (XML, inline
- * base64) that carry the per-vertex tensors as a 9-component "metric" point array and
- * per-triangle scalars as cell data.
+ * Readers and writers (by extension, case-insensitive): .off .obj .ply .stl .mesh .meshb
+ * .vtk (legacy, ASCII) .vtu (XML), and .sol .solb for per-vertex tensors. .vtk and .vtu
+ * carry the per-vertex tensors as a 9-component "metric" point tensor and per-triangle
+ * scalars as cell data; .ply carries them as vertex properties m11..m33 and face
+ * properties.
  *
  * Errors (all functions):
  *   ANISTAR_EIO      the file cannot be opened, read or written ("cannot open 'x.off':
@@ -90,19 +91,22 @@ typedef enum as_mesh_format {
     AS_FMT_STL,
     AS_FMT_MESH, /* Medit .mesh (ASCII) */
     AS_FMT_SOL,  /* Medit .sol (ASCII): per-vertex tensors */
-    AS_FMT_VTK,  /* legacy VTK, write only */
-    AS_FMT_VTU   /* VTK XML unstructured grid, write only */
+    AS_FMT_VTK,  /* legacy VTK (ASCII; UNSTRUCTURED_GRID written, POLYDATA read too) */
+    AS_FMT_VTU,  /* VTK XML unstructured grid */
+    AS_FMT_MESHB, /* GMF binary .meshb (libMeshb, versions 1-4) */
+    AS_FMT_SOLB   /* GMF binary .solb: per-vertex tensors */
 } as_mesh_format;
 
 /* The format named by the extension of path (case-insensitive), AS_FMT_UNKNOWN if none. */
 as_mesh_format as_mesh_format_of(const char *path);
 
 /*
- * Read the triangle mesh in the file path (.off .obj .ply .stl .mesh), choosing the reader
- * by extension. *out must be empty (as_trimesh_init); on success it holds the mesh
- * (nv >= 1, nt >= 1, every index in [0, nv), finite coordinates), on failure it is
- * empty. PLY files whose vertices carry the six properties m11 m12 m13 m22 m23 m33 also
- * fill out->tensor.
+ * Read the triangle mesh in the file path (.off .obj .ply .stl .mesh .meshb .vtk .vtu),
+ * choosing the reader by extension. *out must be empty (as_trimesh_init); on success it
+ * holds the mesh (nv >= 1, nt >= 1, every index in [0, nv), finite coordinates), on
+ * failure it is empty. PLY files whose vertices carry the six properties m11 m12 m13 m22
+ * m23 m33, and VTK files with a point tensor (the one named "metric", else the first),
+ * also fill out->tensor.
  * Notes: STL vertices are welded by exact coordinate equality (first occurrence order);
  *   polygons are split into fans (v0 vi vi+1); polygons of fewer than 3 vertices are
  *   skipped (their indices are still checked). Validation of the topology is separate
@@ -128,6 +132,20 @@ anistar_status as_stl_parse(anistar_context *ctx, const char *name, const char *
                             size_t size, as_trimesh *out);
 anistar_status as_medit_parse(anistar_context *ctx, const char *name, const char *data,
                               size_t size, as_trimesh *out);
+/* Legacy VTK, ASCII: DATASET UNSTRUCTURED_GRID (cells of type 5 triangle, 7 polygon and 9
+ * quad become triangles; other cell types are skipped) or POLYDATA (POLYGONS; VERTICES,
+ * LINES and TRIANGLE_STRIPS skipped); POINT_DATA TENSORS give the tensors; every other
+ * attribute (SCALARS, VECTORS, NORMALS, TEXTURE_COORDINATES, FIELD) is skipped. */
+anistar_status as_vtk_parse(anistar_context *ctx, const char *name, const char *data,
+                            size_t size, as_trimesh *out);
+/* VTK XML UnstructuredGrid or PolyData (Polys), DataArrays in ascii or inline binary
+ * (base64, UInt32 or UInt64 headers, either byte order, no compression); a 9-component
+ * point array "metric" (else the PointData Tensors array) gives the tensors. */
+anistar_status as_vtu_parse(anistar_context *ctx, const char *name, const char *data,
+                            size_t size, as_trimesh *out);
+/* GMF binary (.meshb): versions 1-4, either byte order (see meshb.c). */
+anistar_status as_meshb_parse(anistar_context *ctx, const char *name, const char *data,
+                              size_t size, as_trimesh *out);
 
 /*
  * Read per-vertex tensors from a Medit .sol file (SolAtVertices). Type 3 (symmetric
@@ -142,11 +160,23 @@ anistar_status as_sol_read(anistar_context *ctx, const char *path, size_t *count
                            double **tensor);
 anistar_status as_sol_parse(anistar_context *ctx, const char *name, const char *data,
                             size_t size, size_t *count, double **tensor);
+/* The same for the binary .solb (as_sol_read chooses by extension). */
+anistar_status as_solb_parse(anistar_context *ctx, const char *name, const char *data,
+                             size_t size, size_t *count, double **tensor);
+/* Shared by the .sol and .solb readers. as_sol_pick: given the nf field types of a
+ * SolAtVertices section (1 scalar, 2 vector, 3 symmetric tensor, 4 matrix), the reals
+ * per line (*width), and the offset and type of the field used as the metric (the first
+ * tensor, else the first scalar); returns 0, -1 for an unknown type, -2 if there is no
+ * scalar or tensor field. as_sol_tensor: the tensor of that field's values s (Medit
+ * order for type 3, h for type 1 -> h^-2 I); -1 if h is not positive or overflows. */
+int as_sol_pick(const int64_t *types, size_t nf, int *width, int *off, int *type);
+int as_sol_tensor(int type, const double *s, double out[6]);
 /* Read path with as_sol_read and attach the tensors to m (replacing m->tensor). EFORMAT
  * if the file's vertex count differs from m->nv. */
 anistar_status as_trimesh_read_sol(anistar_context *ctx, const char *path, as_trimesh *m);
 
-/* A per-triangle scalar array written as cell data by the VTK writers. */
+/* A per-triangle scalar array written as cell data by the VTK writers and as a face
+ * property by the PLY writer. */
 typedef struct as_cell_field {
     const char *name;     /* [A-Za-z0-9_.-]+, e.g. "quality" */
     const double *values; /* one finite value per triangle */
@@ -156,12 +186,13 @@ typedef struct as_cell_field {
  * Write m to path, the format chosen by extension:
  *   .off .obj .mesh   text, coordinates with %.17g (exact round trip);
  *   .ply              binary little endian, float64 x y z (+ m11..m33 when m->tensor),
- *                     face list uchar int32;
+ *                     face list uchar int32 (+ one float64 property per cell field);
+ *   .meshb .solb      GMF binary version 2 (version 3 when the file would pass 2 GiB);
  *   .stl              binary (the 80-byte header does not start with "solid"); float32,
  *                     EINVAL if a coordinate does not fit a float;
  *   .sol              the tensors in Medit order (EINVAL if m->tensor is NULL);
  *   .vtk .vtu         geometry, "metric" (9 components) when m->tensor, and the cell
- *                     fields. Other formats ignore the cell fields.
+ *                     fields. Formats other than .vtk .vtu .ply ignore the cell fields.
  * EIO (with strerror) if the file cannot be created or a write or the close fails (the
  * partial file is removed); EINVAL for an invalid mesh or field name; EFORMAT for an
  * unknown extension.
@@ -172,7 +203,8 @@ anistar_status as_mesh_write(anistar_context *ctx, const char *path, const as_tr
 /* The per-format writers behind as_mesh_write (m already checked by as_trimesh_check). */
 anistar_status as_off_write(anistar_context *ctx, const char *path, const as_trimesh *m);
 anistar_status as_obj_write(anistar_context *ctx, const char *path, const as_trimesh *m);
-anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_trimesh *m);
+anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_trimesh *m,
+                            const as_cell_field *cells, size_t ncells);
 anistar_status as_stl_write(anistar_context *ctx, const char *path, const as_trimesh *m);
 anistar_status as_medit_write(anistar_context *ctx, const char *path, const as_trimesh *m);
 anistar_status as_sol_write(anistar_context *ctx, const char *path, const as_trimesh *m);
@@ -180,6 +212,13 @@ anistar_status as_vtk_write(anistar_context *ctx, const char *path, const as_tri
                             const as_cell_field *cells, size_t ncells);
 anistar_status as_vtu_write(anistar_context *ctx, const char *path, const as_trimesh *m,
                             const as_cell_field *cells, size_t ncells);
+/* GMF binary writers of a given version (1: float32 reals, EINVAL if a value does not fit;
+ * 2: float64; 3: 64-bit keyword positions; 4: 64-bit integers too), little endian.
+ * version 0 picks 2, or 3 when the file would exceed INT32_MAX bytes. */
+anistar_status as_meshb_write(anistar_context *ctx, const char *path, const as_trimesh *m,
+                              int version);
+anistar_status as_solb_write(anistar_context *ctx, const char *path, const as_trimesh *m,
+                             int version);
 
 /* ==================================================================================== */
 /* Topology validation (topology.c) — on arrays only                                    */

@@ -2,6 +2,8 @@
  * ply.c — Stanford PLY: reader (ascii, binary_little_endian, binary_big_endian) and
  * writer (binary little endian).
  *
+ * The writer adds one float64 face property per cell field (after vertex_indices).
+ *
  * Reader notes:
  *  - types char/int8 uchar/uint8 short/int16 ushort/uint16 int/int32 uint/uint32
  *    float/float32 double/float64 (and int64/uint64, an extension some tools write);
@@ -563,7 +565,8 @@ static void put_f64(unsigned char *p, double x) {
     as_st_le(p, u, 8);
 }
 
-anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_trimesh *m) {
+anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_trimesh *m,
+                            const as_cell_field *cells, size_t ncells) {
     as_wfile w;
     anistar_status st = as_wfile_open(ctx, &w, path);
     if (st) return st;
@@ -572,8 +575,9 @@ anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_tri
                     "property double z\n", m->nv);
     if (m->tensor)
         for (int k = 0; k < 6; k++) as_wfile_printf(&w, "property double %s\n", tensor_names[k]);
-    as_wfile_printf(&w, "element face %zu\nproperty list uchar int vertex_indices\n"
-                    "end_header\n", m->nt);
+    as_wfile_printf(&w, "element face %zu\nproperty list uchar int vertex_indices\n", m->nt);
+    for (size_t c = 0; c < ncells; c++) as_wfile_printf(&w, "property double %s\n", cells[c].name);
+    as_wfile_puts(&w, "end_header\n");
     unsigned char buf[4096];
     size_t n = 0, rec = m->tensor ? 72 : 24;
     for (size_t i = 0; i < m->nv; i++) {
@@ -587,6 +591,8 @@ anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_tri
         n += rec;
     }
     for (size_t i = 0; i < m->nt; i++) {
+        /* a face record: 13 bytes of indices and 8 per field (written in pieces when the
+         * fields do not fit the buffer together) */
         if (n + 13 > sizeof buf) {
             as_wfile_write(&w, buf, n);
             n = 0;
@@ -594,6 +600,14 @@ anistar_status as_ply_write(anistar_context *ctx, const char *path, const as_tri
         buf[n] = 3;
         for (int k = 0; k < 3; k++) as_st_le(buf + n + 1 + 4 * k, (uint32_t)m->tri[3 * i + k], 4);
         n += 13;
+        for (size_t c = 0; c < ncells; c++) {
+            if (n + 8 > sizeof buf) {
+                as_wfile_write(&w, buf, n);
+                n = 0;
+            }
+            put_f64(buf + n, cells[c].values[i]);
+            n += 8;
+        }
     }
     as_wfile_write(&w, buf, n);
     return as_wfile_close(&w);

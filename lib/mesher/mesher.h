@@ -83,6 +83,9 @@ struct anistar_mesh {
     anistar_mesh_stats stats;
     int32_t *gid;               /* per vertex: its global id in the star set (internal) */
     size_t ngid;
+    double *rho;                /* per triangle: the largest radius-edge ratio in its three
+                                   vertex metrics (as_radius_edge), the statistics' rho */
+    size_t nrho;
 };
 
 /*

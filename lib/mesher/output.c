@@ -12,6 +12,7 @@ void as_mesh_free(anistar_mesh *m) {
     if (!m) return;
     anistar_context *ctx = m->ctx;
     as_free(ctx, m->gid, m->ngid * sizeof *m->gid);
+    as_free(ctx, m->rho, m->nrho * sizeof *m->rho);
     as_trimesh_free(ctx, &m->tm);
     as_free(ctx, m, sizeof *m);
 }
@@ -153,6 +154,26 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
             if (g > S->gamma_max) S->gamma_max = g;
             if (g >= prm->gamma0) beyond = 1;
             if (beyond && as_facet_below_hmin(ss, f)) S->facets_below_hmin++;
+        }
+    }
+    /* per triangle: the largest radius-edge ratio over its three vertex metrics (the cell
+     * field "radius_edge" of the writers) */
+    if (m->tm.nt) {
+        if (!(m->rho = as_alloc_array(ctx, m->tm.nt, sizeof *m->rho))) {
+            s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (output)");
+            goto fail;
+        }
+        m->nrho = m->tm.nt;
+        for (size_t t = 0; t < m->tm.nt; t++) {
+            const int32_t *v = m->tm.tri + 3 * t;
+            const double *a = m->tm.xyz + 3 * (size_t)v[0], *b = m->tm.xyz + 3 * (size_t)v[1],
+                         *c = m->tm.xyz + 3 * (size_t)v[2];
+            double r = 0;
+            for (int j = 0; j < 3; j++) {
+                double q = as_radius_edge(&ss->mf[m->gid[v[j]]], a, b, c, NULL);
+                if (!(q <= r)) r = q;
+            }
+            m->rho[t] = r;
         }
     }
     S->hmin = ss->hmin;

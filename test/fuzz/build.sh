@@ -21,7 +21,7 @@ for src in lib/*.c lib/*/*.c test/fuzz/fuzz_targets.c; do
     fi
     objs="$objs $obj"
 done
-for r in off obj ply stl medit sol inr nrrd metaimage expr; do
+for r in off obj ply stl medit sol inr nrrd metaimage expr vtk vtu meshb solb; do
     $CC $CPPFLAGS $CFLAGS $SAN -fsanitize=fuzzer "test/fuzz/fuzz_$r.c" $objs -lm \
         -o "$OUT/fuzz_$r"
     echo "built $OUT/fuzz_$r"

@@ -53,7 +53,8 @@ static void *ft_alloc_fn(void *user, void *ptr, size_t old_size, size_t new_size
 /* ---- names ---------------------------------------------------------------------------- */
 
 static const char *const ft_names[FT_READER_COUNT] = {
-    "off", "obj", "ply", "stl", "medit", "sol", "inr", "nrrd", "metaimage", "expr"};
+    "off", "obj", "ply", "stl", "medit", "sol", "inr", "nrrd", "metaimage", "expr",
+    "vtk", "vtu", "meshb", "solb"};
 
 const char *ft_reader_name(ft_reader r) {
     return (r >= 0 && r < FT_READER_COUNT) ? ft_names[r] : "invalid";
@@ -237,21 +238,24 @@ void ft_run(ft_reader r, const uint8_t *data, size_t size, ft_result *res) {
     }
 
     anistar_status st = ANISTAR_OK;
-    if (r <= FT_MEDIT) {
+    if (r <= FT_MEDIT || r == FT_VTK || r == FT_VTU || r == FT_MESHB) {
         static const as_mesh_format fmt[] = {AS_FMT_OFF, AS_FMT_OBJ, AS_FMT_PLY, AS_FMT_STL,
                                              AS_FMT_MESH};
+        as_mesh_format f = r == FT_VTK ? AS_FMT_VTK : r == FT_VTU ? AS_FMT_VTU
+                           : r == FT_MESHB ? AS_FMT_MESHB : fmt[r];
         as_trimesh m;
         as_trimesh_init(&m);
-        st = as_mesh_parse(ctx, fmt[r], "fuzz", text, size, &m);
+        st = as_mesh_parse(ctx, f, "fuzz", text, size, &m);
         if (st == ANISTAR_OK)
             ft_check_mesh(&m, res);
         else if (m.nv || m.nt || m.xyz || m.tri || m.tensor)
             ft_fail(res, "failed mesh reader left a non-empty mesh");
         as_trimesh_free(ctx, &m);
-    } else if (r == FT_SOL) {
+    } else if (r == FT_SOL || r == FT_SOLB) {
         size_t count = 0;
         double *t = NULL;
-        st = as_sol_parse(ctx, "fuzz", text, size, &count, &t);
+        st = r == FT_SOL ? as_sol_parse(ctx, "fuzz", text, size, &count, &t)
+                         : as_solb_parse(ctx, "fuzz", text, size, &count, &t);
         if (st == ANISTAR_OK) {
             if (count && !t) ft_fail(res, "as_sol_parse returned OK, count > 0 and no tensors");
             for (size_t i = 0; t && i < 6 * count; i++)

@@ -26,11 +26,16 @@ typedef enum ft_reader {
     FT_NRRD,
     FT_METAIMAGE,
     FT_EXPR,
+    FT_VTK,
+    FT_VTU,
+    FT_MESHB,
+    FT_SOLB,
     FT_READER_COUNT
 } ft_reader;
 
 /* The reader's name, which is also its corpus directory name under test/fuzz/corpus/
- * ("off", "obj", "ply", "stl", "medit", "sol", "inr", "nrrd", "metaimage", "expr"). */
+ * ("off", "obj", "ply", "stl", "medit", "sol", "inr", "nrrd", "metaimage", "expr", "vtk",
+ * "vtu", "meshb", "solb"). */
 const char *ft_reader_name(ft_reader r);
 /* The reader named name, or FT_READER_COUNT if none. */
 ft_reader ft_reader_by_name(const char *name);

@@ -1,0 +1,17 @@
+/* fuzz_vtu.c — libFuzzer harness for the vtu reader (see fuzz_targets.h, README.md). */
+#include "fuzz_targets.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    ft_result res;
+    ft_run(FT_VTU, data, size, &res);
+    if (!res.ok) {
+        fprintf(stderr, "fuzz_vtu: %s (status %d)\n", res.what, res.status);
+        abort();
+    }
+    return 0;
+}

@@ -267,12 +267,12 @@ ANISTAR_API anistar_status anistar_surface_builtin_info(size_t i, const char **n
  * A closed triangle mesh read from a file, the format chosen by the extension
  * (case-insensitive): .off .obj .ply .stl .mesh .meshb (Medit) .vtk .vtu. The mesh must
  * be a closed, orientable 2-manifold without zero-area triangles; its triangles are
- * reoriented consistently (outward) and vertices of no triangle are ignored.
- * Triangle-mesh surfaces have no function f: anistar_surface_eval gives the signed
- * distance to the mesh (negative inside) and its gradient, and no Hessian (ANISTAR_EINVAL if h is asked);
- * side, crossing and projection are exact queries on the triangles (the projection is
- * the closest point of the mesh); normals, curvatures and directions come from
- * per-vertex polynomial fits ("jets", degree 2 on the 16 nearest vertices, paper 5.2.3)
+ * reoriented consistently (outward) and vertices of no triangle are ignored. Triangle-mesh
+ * surfaces have no function f: anistar_surface_eval gives the signed distance to the mesh
+ * (negative inside) and its gradient, and no Hessian (ANISTAR_EINVAL if h is asked); side,
+ * crossing and projection are exact queries on the triangles (the projection is the
+ * closest point of the mesh); normals, curvatures and directions come from per-vertex
+ * polynomial fits ("jets", degree 2 on the 16 nearest vertices, paper 5.2.3)
  * interpolated over the triangle of the closest point.
  * Returns ANISTAR_EIO (the file cannot be read), ANISTAR_EFORMAT (malformed file, unknown
  * extension, or a mesh that is not a closed 2-manifold: the message names every problem

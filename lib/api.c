@@ -8,6 +8,7 @@
 #include "geom/linalg.h"
 #include "geom/metric.h"
 #include "geom/predicates.h"
+#include "io/meshio.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -25,31 +26,8 @@ ANISTAR_API const char *anistar_version(void) {
 
 ANISTAR_API int anistar_version_number(void) { return ANISTAR_VERSION_NUMBER; }
 
-/* ---- status ----------------------------------------------------------------------- */
-
-ANISTAR_API const char *anistar_status_string(anistar_status st) {
-    switch (st) {
-#define AS_STATUS_MSG_(name, value, msg) \
-    case ANISTAR_##name:                 \
-        return msg;
-        ANISTAR_STATUS_TABLE(AS_STATUS_MSG_)
-#undef AS_STATUS_MSG_
-    default:
-        return "unknown status";
-    }
-}
-
-ANISTAR_API const char *anistar_status_name(anistar_status st) {
-    switch (st) {
-#define AS_STATUS_NAME_(name, value, msg) \
-    case ANISTAR_##name:                  \
-        return #name;
-        ANISTAR_STATUS_TABLE(AS_STATUS_NAME_)
-#undef AS_STATUS_NAME_
-    default:
-        return "UNKNOWN";
-    }
-}
+/* ---- status: anistar_status_string and anistar_status_name are in core.c (every layer
+ * reports with them; the api is the top layer) */
 
 /* ---- context ---------------------------------------------------------------------- */
 

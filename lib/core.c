@@ -1,11 +1,39 @@
 /*
- * core.c — error recording and array growth shared by every layer (see core.h).
+ * core.c — error recording and array growth shared by every layer (see core.h), and the
+ * status table of include/anistar.h (the names and messages of anistar_status), which
+ * the errors of every layer use.
  */
 #include "core.h"
 
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+
+/* ---- status ----------------------------------------------------------------------- */
+
+ANISTAR_API const char *anistar_status_string(anistar_status st) {
+    switch (st) {
+#define AS_STATUS_MSG_(name, value, msg) \
+    case ANISTAR_##name:                 \
+        return msg;
+        ANISTAR_STATUS_TABLE(AS_STATUS_MSG_)
+#undef AS_STATUS_MSG_
+    default:
+        return "unknown status";
+    }
+}
+
+ANISTAR_API const char *anistar_status_name(anistar_status st) {
+    switch (st) {
+#define AS_STATUS_NAME_(name, value, msg) \
+    case ANISTAR_##name:                  \
+        return #name;
+        ANISTAR_STATUS_TABLE(AS_STATUS_NAME_)
+#undef AS_STATUS_NAME_
+    default:
+        return "UNKNOWN";
+    }
+}
 
 anistar_status as_fail(anistar_context *ctx, anistar_status st, const char *fmt, ...) {
     if (!ctx) return st;

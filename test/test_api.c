@@ -214,6 +214,45 @@ static void test_install(void **state) {
     assert_int_equal(st, 0);
 }
 
+/* The layers call only downward: core, geom, mesh, io, surface, mesher, api
+ * (test/layers_check.sh over the objects of this build). */
+static void test_layers(void **state) {
+    (void)state;
+    static char out[1 << 14];
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "sh test/layers_check.sh %s 2>&1", AS_TEST_BUILD_DIR);
+    int st = run(cmd, out, sizeof out);
+    if (st != 0) print_error("%s\n", out);
+    assert_int_equal(st, 0);
+    assert_non_null(strstr(out, "every call downward"));
+}
+
+/* The check finds an upward call: a core object calling a function of an api object (as
+ * lib/core.c called anistar_status_string of lib/api.c), built in a scratch tree. */
+static void test_layers_catches_upward_call(void **state) {
+    (void)state;
+    static char out[1 << 14];
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd,
+             "d=$(mktemp -d \"${TMPDIR:-/tmp}/anistar-layers-t.XXXXXX\") && "
+             "mkdir -p \"$d/obj/lib/geom\" && "
+             "printf 'int top_fn(void);\\nint core_fn(void) { return top_fn(); }\\n' "
+             ">\"$d/core.c\" && "
+             "printf 'int geom_fn(void);\\nint top_fn(void) { return geom_fn(); }\\n' "
+             ">\"$d/api.c\" && "
+             "printf 'int geom_fn(void) { return 1; }\\n' >\"$d/g.c\" && "
+             "cc -c \"$d/core.c\" -o \"$d/obj/lib/core.o\" && "
+             "cc -c \"$d/api.c\" -o \"$d/obj/lib/api.o\" && "
+             "cc -c \"$d/g.c\" -o \"$d/obj/lib/geom/g.o\" && "
+             "sh test/layers_check.sh \"$d\" 2>&1; echo \"rc=$?\"; rm -rf \"$d\"");
+    assert_int_equal(run(cmd, out, sizeof out), 0);
+    if (!strstr(out, "rc=1")) print_error("%s\n", out);
+    assert_non_null(strstr(out, "rc=1"));
+    assert_non_null(strstr(out, "uses top_fn from"));
+    /* the downward calls (api -> geom) are not reported */
+    assert_null(strstr(out, "geom_fn"));
+}
+
 /* The API example of README.md compiles, runs and writes its mesh. */
 static void test_readme_api(void **state) {
     (void)state;
@@ -239,6 +278,8 @@ int main(void) {
         cmocka_unit_test(test_soname),
         cmocka_unit_test(test_install),
         cmocka_unit_test(test_readme_api),
+        cmocka_unit_test(test_layers),
+        cmocka_unit_test(test_layers_catches_upward_call),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

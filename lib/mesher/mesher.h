@@ -9,7 +9,7 @@
 #include <stdint.h>
 
 #include "core.h"
-#include "io/meshio.h"
+#include "mesh/trimesh.h"
 #include "mesher/starset.h"
 #include "surface/field.h"
 #include "surface/surface.h"

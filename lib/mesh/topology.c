@@ -2,13 +2,13 @@
  * topology.c — validation of a triangle mesh given as arrays: borders, non-manifold
  * edges and vertices, degenerate triangles (exactly), orientation patches and their
  * consistent (outward) orientation, connected components, Euler characteristic and
- * genus (see meshio.h for the report).
+ * genus (see trimesh.h for the report).
  *
  * The surface layer needs a closed, consistently oriented 2-manifold (DESIGN.md 4.6:
  * side by ray parity; 4.8: F = 2V - 2 chi); this file says precisely what is wrong
  * with an input that is not one, and orients one that is.
  */
-#include "io/meshio.h"
+#include "mesh/trimesh.h"
 
 #include <float.h>
 #include <math.h>

@@ -11,19 +11,9 @@ static const dcase cases[] = {
     {"liver_labels_half.inr", 1, 0, 0, 1},
 };
 
-static int run_all(const dcase *cases, size_t n) {
-    int certified = 0, must = 0;
-    for (size_t i = 0; i < n; i++) {
-        dc_run_case(&cases[i], &certified);
-        must += cases[i].must;
-    }
-    print_message("defaults: %d of %zu certified (%d must)\n", certified, n, must);
-    return certified >= must;
-}
-
 static void test_defaults_images(void **state) {
     (void)state;
-    assert_true(run_all(cases, sizeof cases / sizeof cases[0]));
+    assert_true(dc_run_all(cases, sizeof cases / sizeof cases[0]));
 }
 
 int main(void) {

@@ -11,25 +11,7 @@
 
 #define NONE UINT32_MAX
 
-static inline uint32_t uf_find(uint32_t *p, uint32_t x) {
-    while (p[x] != x) {
-        p[x] = p[p[x]];
-        x = p[x];
-    }
-    return x;
-}
 
-static inline void uf_union(uint32_t *p, uint32_t a, uint32_t b) {
-    a = uf_find(p, a);
-    b = uf_find(p, b);
-    if (a == b) return;
-    if (a < b) p[b] = a;
-    else p[a] = b;
-}
-
-static inline int repeated(const int32_t *t) {
-    return t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
-}
 
 static int cmp_u64(const void *a, const void *b) {
     uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
@@ -45,7 +27,7 @@ static anistar_status component_topology(anistar_context *ctx, const as_trimesh 
     size_t n = 0, k = 0;
     for (size_t t = 0; t < m->nt; t++) {
         const int32_t *tr = m->tri + 3 * t;
-        if (repeated(tr) || comp[tr[0]] != c) continue;
+        if (as_tri_repeated(tr) || comp[tr[0]] != c) continue;
         for (int i = 0; i < 3; i++) {
             int32_t v = tr[i];
             if (local[v] < 0) {
@@ -60,7 +42,7 @@ static anistar_status component_topology(anistar_context *ctx, const as_trimesh 
     anistar_status s = as_topology_check(ctx, n, sx, k, st, rep);
     for (size_t t = 0; t < m->nt; t++) {
         const int32_t *tr = m->tri + 3 * t;
-        if (!repeated(tr) && comp[tr[0]] == c)
+        if (!as_tri_repeated(tr) && comp[tr[0]] == c)
             for (int i = 0; i < 3; i++) local[tr[i]] = -1;
     }
     return s;
@@ -112,18 +94,18 @@ anistar_status as_trimesh_info(anistar_context *ctx, const as_trimesh *m, anista
     }
     for (size_t t = 0; t < nt; t++) {
         const int32_t *tr = m->tri + 3 * t;
-        if (repeated(tr)) continue;
-        uf_union(parent, (uint32_t)tr[0], (uint32_t)tr[1]);
-        uf_union(parent, (uint32_t)tr[0], (uint32_t)tr[2]);
+        if (as_tri_repeated(tr)) continue;
+        as_uf_union(parent, (uint32_t)tr[0], (uint32_t)tr[1]);
+        as_uf_union(parent, (uint32_t)tr[0], (uint32_t)tr[2]);
     }
     uint32_t ncomp = 0;
     for (size_t t = 0; t < nt; t++) {
         const int32_t *tr = m->tri + 3 * t;
-        if (repeated(tr)) continue;
-        uint32_t r = uf_find(parent, (uint32_t)tr[0]);
+        if (as_tri_repeated(tr)) continue;
+        uint32_t r = as_uf_find(parent, (uint32_t)tr[0]);
         if (comp[r] == NONE) comp[r] = ncomp++;
     }
-    for (size_t v = 0; v < nv; v++) comp[v] = comp[uf_find(parent, (uint32_t)v)];
+    for (size_t v = 0; v < nv; v++) comp[v] = comp[as_uf_find(parent, (uint32_t)v)];
     for (uint32_t c = 0; c < ncomp && c < ANISTAR_INFO_COMPONENTS; c++) {
         as_topology cr;
         s = component_topology(ctx, m, comp, c, local, sx, st, &cr);
@@ -215,9 +197,9 @@ anistar_status as_voxel_components(anistar_context *ctx, const unsigned char *in
             for (size_t i = 0; i < nx; i++, idx++) {
                 if (!in[idx]) continue;
                 p[idx] = (uint32_t)idx;
-                if (i > 0 && in[idx - 1]) uf_union(p, (uint32_t)idx, (uint32_t)(idx - 1));
-                if (j > 0 && in[idx - nx]) uf_union(p, (uint32_t)idx, (uint32_t)(idx - nx));
-                if (k > 0 && in[idx - plane]) uf_union(p, (uint32_t)idx, (uint32_t)(idx - plane));
+                if (i > 0 && in[idx - 1]) as_uf_union(p, (uint32_t)idx, (uint32_t)(idx - 1));
+                if (j > 0 && in[idx - nx]) as_uf_union(p, (uint32_t)idx, (uint32_t)(idx - nx));
+                if (k > 0 && in[idx - plane]) as_uf_union(p, (uint32_t)idx, (uint32_t)(idx - plane));
             }
     for (idx = 0; idx < n; idx++)
         if (in[idx] && p[idx] == idx) ++*count;

@@ -110,33 +110,11 @@ int as_io_collinear3(const double a[3], const double b[3], const double c[3]) {
 }
 
 /* ==================================================================================== */
-/* Union-find (path halving, smaller index as root; iterative)                           */
-/* ==================================================================================== */
-
-static inline uint32_t uf_find(uint32_t *p, uint32_t x) {
-    while (p[x] != x) {
-        p[x] = p[p[x]];
-        x = p[x];
-    }
-    return x;
-}
-
-static inline void uf_union(uint32_t *p, uint32_t a, uint32_t b) {
-    a = uf_find(p, a);
-    b = uf_find(p, b);
-    if (a < b)
-        p[b] = a;
-    else if (b < a)
-        p[a] = b;
-}
-
-/* ==================================================================================== */
 /* The analysis                                                                          */
 /* ==================================================================================== */
 
 #define NONE UINT32_MAX
 
-static inline int repeated(const int32_t *t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
 
 /* Start and end vertex of half-edge h (corner h % 3 of triangle h / 3 to the next). */
 static inline uint32_t he_from(const int32_t *tri, uint32_t h) { return (uint32_t)tri[h]; }
@@ -231,7 +209,7 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
     uint32_t nh = 0;
     memset(w.cnt, 0, (nv + 1) * sizeof(uint32_t));
     for (uint32_t h = 0; h < n3; h++) {
-        if (h % 3 == 0 && repeated(tri + h)) {
+        if (h % 3 == 0 && as_tri_repeated(tri + h)) {
             rep->repeated_index++;
             h += 2;
             continue;
@@ -241,7 +219,7 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
     }
     for (size_t v = 0; v < nv; v++) w.cnt[v + 1] += w.cnt[v];
     for (uint32_t h = 0; h < n3; h++) {
-        if (h % 3 == 0 && repeated(tri + h)) {
+        if (h % 3 == 0 && as_tri_repeated(tri + h)) {
             h += 2;
             continue;
         }
@@ -272,8 +250,8 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
             w.nbr[h2] = h1;
             if (he_from(tri, h1) == he_from(tri, h2)) rep->misoriented_edges++;
             uint32_t t1 = h1 / 3, t2 = h2 / 3;
-            uf_union(w.a, corner_of(tri, t1, lo), corner_of(tri, t2, lo));
-            uf_union(w.a, corner_of(tri, t1, hi), corner_of(tri, t2, hi));
+            as_uf_union(w.a, corner_of(tri, t1, lo), corner_of(tri, t2, lo));
+            as_uf_union(w.a, corner_of(tri, t1, hi), corner_of(tri, t2, hi));
         }
         i = j;
     }
@@ -281,11 +259,11 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
     /* (3) Fans per vertex: one per root corner. */
     memset(w.cnt, 0, (nv + 1) * sizeof(uint32_t));
     for (uint32_t h = 0; h < n3; h++) {
-        if (h % 3 == 0 && repeated(tri + h)) {
+        if (h % 3 == 0 && as_tri_repeated(tri + h)) {
             h += 2;
             continue;
         }
-        if (uf_find(w.a, h) == h) w.cnt[tri[h]]++;
+        if (as_uf_find(w.a, h) == h) w.cnt[tri[h]]++;
     }
     for (size_t v = 0; v < nv; v++) {
         if (w.cnt[v] > 0) rep->used_vertices++;
@@ -298,7 +276,7 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
     uint32_t qn = 0;
     double given_volume = 0, volume = 0;
     for (uint32_t t0 = 0; t0 < nt; t0++) {
-        if (w.flip[t0] != 2 || repeated(tri + 3 * t0)) continue;
+        if (w.flip[t0] != 2 || as_tri_repeated(tri + 3 * t0)) continue;
         uint32_t qs = qn;
         int open = 0, conflict = 0;
         w.flip[t0] = 0;
@@ -356,16 +334,16 @@ static anistar_status topology(anistar_context *ctx, size_t nv, const double *xy
     /* (5) Components through shared vertices. */
     for (size_t v = 0; v < nv; v++) w.pv[v] = (uint32_t)v;
     for (uint32_t t = 0; t < nt; t++) {
-        if (repeated(tri + 3 * t)) continue;
-        uf_union(w.pv, (uint32_t)tri[3 * t], (uint32_t)tri[3 * t + 1]);
-        uf_union(w.pv, (uint32_t)tri[3 * t], (uint32_t)tri[3 * t + 2]);
+        if (as_tri_repeated(tri + 3 * t)) continue;
+        as_uf_union(w.pv, (uint32_t)tri[3 * t], (uint32_t)tri[3 * t + 1]);
+        as_uf_union(w.pv, (uint32_t)tri[3 * t], (uint32_t)tri[3 * t + 2]);
     }
     for (size_t v = 0; v < nv; v++)
-        if (w.cnt[v] > 0 && uf_find(w.pv, (uint32_t)v) == v) rep->components++;
+        if (w.cnt[v] > 0 && as_uf_find(w.pv, (uint32_t)v) == v) rep->components++;
 
     /* (6) Zero-area triangles, exactly. */
     for (uint32_t t = 0; t < nt; t++) {
-        if (repeated(tri + 3 * t)) continue;
+        if (as_tri_repeated(tri + 3 * t)) continue;
         if (as_io_collinear3(xyz + 3 * (size_t)tri[3 * t], xyz + 3 * (size_t)tri[3 * t + 1],
                              xyz + 3 * (size_t)tri[3 * t + 2]))
             rep->zero_area++;

@@ -131,4 +131,24 @@ int as_io_orient2d_sign(const double a[2], const double b[2], const double c[2])
 /* 1 iff the three points are exactly collinear (or two coincide). */
 int as_io_collinear3(const double a[3], const double b[3], const double c[3]);
 
+/* Union-find over uint32 nodes for the topology of a mesh (path halving; the root of a
+ * set is its smallest node, so the result does not depend on the order of the unions). */
+static inline uint32_t as_uf_find(uint32_t *p, uint32_t x) {
+    while (p[x] != x) {
+        p[x] = p[p[x]];
+        x = p[x];
+    }
+    return x;
+}
+static inline void as_uf_union(uint32_t *p, uint32_t a, uint32_t b) {
+    a = as_uf_find(p, a);
+    b = as_uf_find(p, b);
+    if (a < b) p[b] = a;
+    else if (b < a) p[a] = b;
+}
+/* 1 iff triangle t (three indices) repeats a vertex. */
+static inline int as_tri_repeated(const int32_t *t) {
+    return t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+}
+
 #endif

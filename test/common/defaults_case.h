@@ -21,5 +21,7 @@ typedef struct dcase {
 /* Mesh c->file with the defaults and check the result (fails the test on a violation);
  * *certified is incremented when the run ended certified. */
 void dc_run_case(const dcase *c, int *certified);
+/* Run the n cases; 1 iff at least as many ended certified as must (prints the count). */
+int dc_run_all(const dcase *cases, size_t n);
 
 #endif

@@ -1268,6 +1268,62 @@ static void test_public_api(void **state) {
     anistar_context_free(ctx);
 }
 
+/* Every built-in surface is evaluated natively (kind "builtin"); its value, gradient and
+ * Hessian agree with its formula run by the expression interpreter at random points of
+ * its bounding box, to rounding (1e-12 of the largest magnitude of each quantity over the
+ * points), with default and other parameters; on the torus's axis both fail. */
+static void test_builtin_native(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    assert_non_null(ctx);
+    static const char *specs[] = {"sphere",     "sphere,r=0.3",         "ellipsoid",
+                                  "ellipsoid,a=2,b=0.5,c=3", "torus",   "torus,R=3,r=2",
+                                  "chair",      "chair,a=0.5,b=0.7,k=2", "tanglecube",
+                                  "tanglecube,c=10", "double_torus", "double_torus,r=0.2"};
+    enum { NP = 400 };
+    tu_rng rng = {77};
+    for (size_t i = 0; i < sizeof specs / sizeof specs[0]; i++) {
+        as_surface *nat = NULL, *ex = NULL;
+        assert_int_equal(as_implicit_builtin(ctx, specs[i], &nat), ANISTAR_OK);
+        assert_int_equal(as_implicit_builtin_expr(ctx, specs[i], &ex), ANISTAR_OK);
+        assert_string_equal(nat->ops->kind, "builtin");
+        assert_string_equal(ex->ops->kind, "expression");
+        static double a[NP][10], b[NP][10];
+        double scale[3] = {0, 0, 0}; /* f, g, h */
+        for (int k = 0; k < NP; k++) {
+            double p[3];
+            for (int j = 0; j < 3; j++)
+                p[j] = nat->center[j] + tu_rng_range(&rng, -nat->radius, nat->radius);
+            assert_int_equal(as_surface_eval(ctx, nat, p, 2, &a[k][0], a[k] + 1, a[k] + 4),
+                             ANISTAR_OK);
+            assert_int_equal(as_surface_eval(ctx, ex, p, 2, &b[k][0], b[k] + 1, b[k] + 4),
+                             ANISTAR_OK);
+            for (int j = 0; j < 10; j++) {
+                int q = j == 0 ? 0 : j < 4 ? 1 : 2;
+                if (fabs(b[k][j]) > scale[q]) scale[q] = fabs(b[k][j]);
+            }
+        }
+        for (int k = 0; k < NP; k++)
+            for (int j = 0; j < 10; j++) {
+                int q = j == 0 ? 0 : j < 4 ? 1 : 2;
+                if (!(fabs(a[k][j] - b[k][j]) <= 1e-12 * scale[q]))
+                    fail_msg("%s: point %d, component %d: native %.17g, formula %.17g",
+                             specs[i], k, j, a[k][j], b[k][j]);
+            }
+        as_surface_free(nat);
+        as_surface_free(ex);
+    }
+    /* the torus's axis: the gradient is 0/0 in both */
+    as_surface *t = builtin(ctx, "torus");
+    const double axis[3] = {0, 0, 0.5};
+    double f, g[3], h[6];
+    assert_int_equal(as_surface_eval(ctx, t, axis, 1, &f, g, h), ANISTAR_EINVAL);
+    assert_int_equal(as_surface_eval(ctx, t, axis, 0, &f, NULL, NULL), ANISTAR_OK);
+    assert_true(f == 100 + 0.25 - 1);
+    as_surface_free(t);
+    anistar_context_free(ctx);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sphere_curvature),  cmocka_unit_test(test_torus_curvature),
@@ -1280,6 +1336,7 @@ int main(void) {
         cmocka_unit_test(test_sample_area),       cmocka_unit_test(test_callbacks),
         cmocka_unit_test(test_singular),          cmocka_unit_test(test_alloc_failures),
         cmocka_unit_test(test_threads),           cmocka_unit_test(test_public_api),
+        cmocka_unit_test(test_builtin_native),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

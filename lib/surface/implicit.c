@@ -12,10 +12,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* A built-in surface's native f with its gradient and Hessian (order as in
+ * as_surface_ops.eval), its parameters in v. */
+typedef double (*bi_native_fn)(const double *v, const double p[3], int order, double g[3],
+                               double h[6]);
+
 typedef struct as_implicit {
     as_surface base;    /* first member: the common header */
     as_implicit_fn fn;  /* callbacks (kind "implicit") */
-    as_expr *expr;      /* compiled expression (kind "expression"), owned */
+    as_expr *expr;      /* compiled expression (kinds "expression" and "builtin"), owned */
+    bi_native_fn native;/* kind "builtin": the native evaluation ... */
+    double bv[4];       /* ... and its parameters */
     double hg, hh;      /* finite-difference steps (gradient, Hessian from values) */
 } as_implicit;
 
@@ -107,6 +114,16 @@ static double ex_eval(const as_surface *s, const double p[3], int order, double 
     return as_expr_value_grad_hess(im->expr, p, g, h);
 }
 
+/* design: a built-in surface is evaluated by its own C code (value, gradient and Hessian
+ * written out), not by the expression interpreter, which took about a tenth of a run on
+ * the paper's torus (issue 15); the compiled formula is kept, and test_surface checks
+ * that the two agree. */
+static double bi_eval(const as_surface *s, const double p[3], int order, double g[3],
+                      double h[6]) {
+    const as_implicit *im = (const as_implicit *)s;
+    return im->native(im->bv, p, order, g, h);
+}
+
 static void im_destroy(as_surface *s) {
     as_implicit *im = (as_implicit *)s;
     anistar_context *ctx = s->ctx;
@@ -117,6 +134,8 @@ static void im_destroy(as_surface *s) {
 static const as_surface_ops cb_ops = {"implicit", cb_eval, NULL, NULL, NULL, NULL, NULL,
                                       im_destroy};
 static const as_surface_ops ex_ops = {"expression", ex_eval, NULL, NULL, NULL, NULL, NULL,
+                                      im_destroy};
+static const as_surface_ops bi_ops = {"builtin", bi_eval, NULL, NULL, NULL, NULL, NULL,
                                       im_destroy};
 
 static anistar_status im_new(anistar_context *ctx, const as_surface_ops *ops,
@@ -184,6 +203,7 @@ typedef struct bi_surface {
     /* NULL if the parameters are valid, else a message naming the constraint */
     const char *(*check)(const double *v);
     double (*bound)(const double *v); /* default bounding radius (center: origin) */
+    bi_native_fn native;
 } bi_surface;
 
 static const char *chk_sphere(const double *v) { return v[0] > 0 ? NULL : "r must be > 0"; }
@@ -221,31 +241,152 @@ static const char *chk_double_torus(const double *v) {
 }
 static double bd_double_torus(const double *v) { return 1.2 + v[0]; }
 
+
+/* The native evaluations (see bi_eval). h: m11 m12 m13 m22 m23 m33. */
+static double nat_sphere(const double *v, const double p[3], int order, double g[3],
+                         double h[6]) {
+    const double x = p[0], y = p[1], z = p[2];
+    if (order >= 1) {
+        g[0] = 2 * x;
+        g[1] = 2 * y;
+        g[2] = 2 * z;
+    }
+    if (order >= 2) {
+        h[0] = h[3] = h[5] = 2;
+        h[1] = h[2] = h[4] = 0;
+    }
+    return x * x + y * y + z * z - v[0] * v[0];
+}
+
+static double nat_ellipsoid(const double *v, const double p[3], int order, double g[3],
+                            double h[6]) {
+    double f = -1;
+    for (int i = 0; i < 3; i++) {
+        double t = p[i] / v[i];
+        f += t * t;
+        if (order >= 1) g[i] = 2 * t / v[i];
+    }
+    if (order >= 2) {
+        h[0] = 2 / (v[0] * v[0]);
+        h[3] = 2 / (v[1] * v[1]);
+        h[5] = 2 / (v[2] * v[2]);
+        h[1] = h[2] = h[4] = 0;
+    }
+    return f;
+}
+
+/* (q - R)^2 + z^2 - r^2 with q = |(x, y)|; on the axis (q = 0) the gradient and Hessian
+ * are NaN, as the expression's are. */
+static double nat_torus(const double *v, const double p[3], int order, double g[3],
+                        double h[6]) {
+    const double R = v[0], r = v[1], x = p[0], y = p[1], z = p[2];
+    const double q = sqrt(x * x + y * y), d = q - R;
+    if (order >= 1) {
+        double c = 2 * d / q;
+        g[0] = c * x;
+        g[1] = c * y;
+        g[2] = 2 * z;
+        if (order >= 2) {
+            /* d2/dxi dxj of (q - R)^2 = 2 xi xj / q^2 + 2 d (dij / q - xi xj / q^3) */
+            double q2 = q * q, a = 2 / q2 - 2 * d / (q2 * q);
+            h[0] = a * x * x + c;
+            h[1] = a * x * y;
+            h[3] = a * y * y + c;
+            h[2] = h[4] = 0;
+            h[5] = 2;
+        }
+    }
+    return d * d + z * z - r * r;
+}
+
+/* (s - a k^2)^2 - b A B with s = |p|^2, A = (z - k)^2 - 2 x^2, B = (z + k)^2 - 2 y^2. */
+static double nat_chair(const double *v, const double p[3], int order, double g[3],
+                        double h[6]) {
+    const double a = v[0], b = v[1], k = v[2], x = p[0], y = p[1], z = p[2];
+    const double P = x * x + y * y + z * z - a * k * k;
+    const double A = (z - k) * (z - k) - 2 * x * x, B = (z + k) * (z + k) - 2 * y * y;
+    if (order >= 1) {
+        const double Pd[3] = {2 * x, 2 * y, 2 * z};
+        const double Ad[3] = {-4 * x, 0, 2 * (z - k)}, Bd[3] = {0, -4 * y, 2 * (z + k)};
+        for (int i = 0; i < 3; i++) g[i] = 2 * P * Pd[i] - b * (Ad[i] * B + A * Bd[i]);
+        if (order >= 2) {
+            const double Add[3] = {-4, 0, 2}, Bdd[3] = {0, -4, 2}; /* diagonal only */
+            int n = 0;
+            for (int i = 0; i < 3; i++)
+                for (int j = i; j < 3; j++, n++) {
+                    double dij = i == j;
+                    h[n] = 2 * (Pd[i] * Pd[j] + 2 * P * dij) -
+                           b * (dij * Add[i] * B + Ad[i] * Bd[j] + Ad[j] * Bd[i] +
+                                A * dij * Bdd[i]);
+                }
+        }
+    }
+    return P * P - b * A * B;
+}
+
+static double nat_tanglecube(const double *v, const double p[3], int order, double g[3],
+                             double h[6]) {
+    double f = v[0];
+    for (int i = 0; i < 3; i++) {
+        double t = p[i], t2 = t * t;
+        f += t2 * t2 - 5 * t2;
+        if (order >= 1) g[i] = 4 * t2 * t - 10 * t;
+    }
+    if (order >= 2) {
+        h[0] = 12 * p[0] * p[0] - 10;
+        h[3] = 12 * p[1] * p[1] - 10;
+        h[5] = 12 * p[2] * p[2] - 10;
+        h[1] = h[2] = h[4] = 0;
+    }
+    return f;
+}
+
+/* u^2 + z^2 - r^2 with u = x^4 - x^2 + y^2. */
+static double nat_double_torus(const double *v, const double p[3], int order, double g[3],
+                               double h[6]) {
+    const double r = v[0], x = p[0], y = p[1], z = p[2], x2 = x * x;
+    const double u = x2 * x2 - x2 + y * y;
+    if (order >= 1) {
+        const double ux = 4 * x2 * x - 2 * x, uy = 2 * y;
+        g[0] = 2 * u * ux;
+        g[1] = 2 * u * uy;
+        g[2] = 2 * z;
+        if (order >= 2) {
+            h[0] = 2 * (ux * ux + u * (12 * x2 - 2));
+            h[1] = 2 * ux * uy;
+            h[3] = 2 * (uy * uy + 2 * u);
+            h[2] = h[4] = 0;
+            h[5] = 2;
+        }
+    }
+    return u * u + z * z - r * r;
+}
+
 static const bi_surface bi_table[] = {
     {"sphere", "sphere of radius r: x^2+y^2+z^2-r^2; r=1; bound 1.25 r; genus 0",
-     "x^2+y^2+z^2-r^2", 1, {{"r", 1}}, chk_sphere, bd_sphere},
+     "x^2+y^2+z^2-r^2", 1, {{"r", 1}}, chk_sphere, bd_sphere, nat_sphere},
     {"ellipsoid",
      "ellipsoid with semi-axes a, b, c: (x/a)^2+(y/b)^2+(z/c)^2-1; a=1.5, b=1, c=0.5; "
      "bound 1.25 max(a,b,c); genus 0",
      "(x/a)^2+(y/b)^2+(z/c)^2-1", 3, {{"a", 1.5}, {"b", 1}, {"c", 0.5}}, chk_ellipsoid,
-     bd_ellipsoid},
+     bd_ellipsoid, nat_ellipsoid},
     {"torus",
      "torus around the z axis: (sqrt(x^2+y^2)-R)^2+z^2-r^2; R=10, r=1 (the paper's); "
      "bound R + 1.25 r; genus 1",
-     "(sqrt(x^2+y^2)-R)^2+z^2-r^2", 2, {{"R", 10}, {"r", 1}}, chk_torus, bd_torus},
+     "(sqrt(x^2+y^2)-R)^2+z^2-r^2", 2, {{"R", 10}, {"r", 1}}, chk_torus, bd_torus, nat_torus},
     {"chair",
      "the paper's chair (Fig. 5): (x^2+y^2+z^2-a*k^2)^2-b*((z-k)^2-2*x^2)*((z+k)^2-2*y^2); "
      "a=0.8, b=0.4, k=1; bound 1.3 k; genus 3",
      "(x^2+y^2+z^2-a*k^2)^2-b*((z-k)^2-2*x^2)*((z+k)^2-2*y^2)", 3,
-     {{"a", 0.8}, {"b", 0.4}, {"k", 1}}, chk_chair, bd_chair},
+     {{"a", 0.8}, {"b", 0.4}, {"k", 1}}, chk_chair, bd_chair, nat_chair},
     {"tanglecube",
      "tangle cube: x^4-5*x^2+y^4-5*y^2+z^4-5*z^2+c; c=11.8; bound 4 (suits c near 11.8); "
      "genus 5",
-     "x^4-5*x^2+y^4-5*y^2+z^4-5*z^2+c", 1, {{"c", 11.8}}, chk_none, bd_tanglecube},
+     "x^4-5*x^2+y^4-5*y^2+z^4-5*z^2+c", 1, {{"c", 11.8}}, chk_none, bd_tanglecube, nat_tanglecube},
     {"double_torus",
      "genus-2 surface: a tube around Gerono's lemniscate y^2 = x^2 (1-x^2) (a figure "
      "eight in the xy plane): (x^4-x^2+y^2)^2+z^2-r^2; r=0.1 (0 < r < 0.25); bound 1.2 + r",
-     "(x^4-x^2+y^2)^2+z^2-r^2", 1, {{"r", 0.1}}, chk_double_torus, bd_double_torus},
+     "(x^4-x^2+y^2)^2+z^2-r^2", 1, {{"r", 0.1}}, chk_double_torus, bd_double_torus, nat_double_torus},
 };
 #define BI_COUNT (sizeof bi_table / sizeof bi_table[0])
 
@@ -270,7 +411,8 @@ static int parse_number(const char *s, size_t n, double *v) {
     return 0;
 }
 
-anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_surface **out) {
+static anistar_status bi_create(anistar_context *ctx, const char *spec, int native_off,
+                                as_surface **out) {
     *out = NULL;
     if (!spec) return as_fail(ctx, ANISTAR_EINVAL, "builtin: NULL name");
     size_t nlen = strcspn(spec, ",");
@@ -354,5 +496,20 @@ anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_su
     if (w < 0 || (size_t)w >= sizeof src - used)
         return as_fail(ctx, ANISTAR_EINTERNAL, "builtin '%s': expression too long", bi->name);
     const double center[3] = {0, 0, 0};
-    return as_implicit_from_expression(ctx, src, center, bound, out);
+    anistar_status st = as_implicit_from_expression(ctx, src, center, bound, out);
+    if (st != ANISTAR_OK || native_off) return st;
+    as_implicit *im = (as_implicit *)*out;
+    im->base.ops = &bi_ops;
+    im->native = bi->native;
+    for (int i = 0; i < bi->nparams; i++) im->bv[i] = v[i];
+    return ANISTAR_OK;
+}
+
+anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_surface **out) {
+    return bi_create(ctx, spec, 0, out);
+}
+
+anistar_status as_implicit_builtin_expr(anistar_context *ctx, const char *spec,
+                                        as_surface **out) {
+    return bi_create(ctx, spec, 1, out);
 }

@@ -68,7 +68,8 @@ typedef struct as_point_sample {
 } as_point_sample;
 
 typedef struct as_surface_ops {
-    const char *kind; /* "implicit", "expression", "mesh" (mesh.c), "image" (image.c) */
+    const char *kind; /* "implicit", "expression", "builtin" (implicit.c), "mesh" (mesh.c),
+                         "image" (image.c) */
     /*
      * f at p; with order >= 1 also grad f in g, with order 2 also the Hessian in h
      * (m11 m12 m13 m22 m23 m33). NULL for kinds not given by a function (triangle
@@ -316,6 +317,10 @@ anistar_status as_implicit_from_expression(anistar_context *ctx, const char *exp
  * ones).
  */
 anistar_status as_implicit_builtin(anistar_context *ctx, const char *spec, as_surface **out);
+/* The same surface evaluated by its formula through the expression interpreter (kind
+ * "expression") instead of its native code (kind "builtin"): the tests compare them. */
+anistar_status as_implicit_builtin_expr(anistar_context *ctx, const char *spec,
+                                        as_surface **out);
 
 /* The i-th built-in: name and a one-line description (formula, parameters with
  * defaults, bounding radius, topology). Returns 0, or -1 past the last one. */

@@ -1285,7 +1285,7 @@ static void help(void) {
            "a run whose up-front estimate exceeds it is refused, status 1), max-seconds 0\n"
            "(no limit), max-stall 0\n"
            "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"
-           "inconsistent-facet count), seed 0, pick-tries 60, hmin 0 (automatic: the\n"
+           "inconsistent-facet count), seed 0, pick-tries 20, hmin 0 (automatic: the\n"
            "surface's resolution; facets with a shorter longest edge get no size,\n"
            "distortion or shape refinement), hmax 0 (none; longer facets are refined),\n"
            "aniso-cap 1 (the metric's small eigenvalues are raised where its frame turns\n"

@@ -502,7 +502,7 @@ typedef enum anistar_param {
     ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
                                    [0, 2^53] (default 0) */
     ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer
-                                   in [1, 100000] (default 60) */
+                                   in [1, 100000] (default 20) */
     ANISTAR_PARAM_OPTIMIZE,     /* 1: vertex optimisation after a complete run (paper
                                    6.2; moves vertices toward the area-weighted mean of
                                    their facets' surface centers while every guarantee

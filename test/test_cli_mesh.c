@@ -78,14 +78,19 @@ static void test_mesh_sphere(void **state) {
     assert_true(tu_json_number(js, "euler_characteristic") == 2);
     assert_int_equal(tu_json_bool(js, "closed_manifold"), 1);
     assert_int_equal(tu_json_bool(js, "complete"), 1);
-    double total = tu_json_number(js, "total"), init = tu_json_number(js, "init"),
-           refine = tu_json_number(js, "refine"), output = tu_json_number(js, "output");
+    const char *sec = tu_json_value(js, "seconds"), *ins_o = tu_json_value(js, "insertions");
+    assert_non_null(sec);
+    assert_non_null(ins_o);
+    double total = tu_json_number(sec, "total"), init = tu_json_number(sec, "init"),
+           refine = tu_json_number(sec, "refine"), output = tu_json_number(sec, "output");
     assert_true(total >= 0 && init >= 0 && refine >= 0 && output >= 0);
     assert_true(init + refine + output <= total * 1.01 + 1e-3);
-    double ins = tu_json_number(js, "initial") + tu_json_number(js, "rule1") +
-                 tu_json_number(js, "rule2") + tu_json_number(js, "rule3");
+    double ins = tu_json_number(ins_o, "initial") + tu_json_number(ins_o, "rule1") +
+                 tu_json_number(ins_o, "rule2") + tu_json_number(ins_o, "rule3");
     assert_true(ins >= (double)nv); /* every output vertex was inserted */
-    assert_true(tu_json_number(js, "tries") >= tu_json_number(js, "failures"));
+    const char *pv = tu_json_value(js, "pick_valid");
+    assert_non_null(pv);
+    assert_true(tu_json_number(pv, "tries") >= tu_json_number(pv, "failures"));
     /* the bounds hold on a finished mesh (euclidean: one metric, no distortion) */
     double rho = tu_json_number(js, "rho_max"), rmax = tu_json_number(js, "r_max");
     assert_true(rho > 0.5 && rho <= 3.0 + 1e-9); /* rho0 defaults to 3 */
@@ -97,10 +102,13 @@ static void test_mesh_sphere(void **state) {
     assert_non_null(ae);
     double emean = tu_json_number(ae, "mean"), emax = tu_json_number(ae, "max");
     assert_true(emean > 0 && emean <= emax && emax <= 1 - sqrt(1 - 0.09) + 1e-12);
-    assert_non_null(tu_json_value(js, "parameters"));
-    assert_true(tu_json_number(js, "r0") == 0.3);
+    const char *par = tu_json_value(js, "parameters");
+    assert_non_null(par);
+    assert_true(tu_json_number(par, "r0") == 0.3);
+    assert_true(tu_json_number(par, "seed") == 7);
     assert_true(tu_json_number(js, "seed") == 7);
-    assert_true(tu_json_number(js, "aniso_cap") == 1); /* the default */
+    assert_true(tu_json_number(par, "aniso_cap") == 1); /* the default */
+    assert_true(tu_json_number(par, "pick_tries") == 20); /* the default */
     assert_non_null(strstr(js, "\"euclidean\""));
     free(js);
 
@@ -177,8 +185,10 @@ static void test_mesh_limit(void **state) {
      * facets were left out as inconsistent) */
     assert_true(nv <= 2000);
     assert_true(tu_json_number(js, "r_max") > 0.5 || tu_json_number(js, "inconsistent_facets") > 0);
-    assert_true(tu_json_number(js, "max_vertices") == 2000);
-    assert_true(tu_json_number(js, "aniso_cap") == 0);
+    const char *par = tu_json_value(js, "parameters");
+    assert_non_null(par);
+    assert_true(tu_json_number(par, "max_vertices") == 2000);
+    assert_true(tu_json_number(par, "aniso_cap") == 0);
     free(js);
     unlink(off), unlink(json);
     test_free(r);

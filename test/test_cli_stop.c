@@ -195,7 +195,7 @@ static void stop_by_signal(int sig, const char *name) {
     const char *par = tu_json_value(js, "parameters");
     assert_non_null(par);
     assert_true(tu_json_number(par, "max_stall") == 0);
-    assert_true(tu_json_number(js, "max_vertices") == 1000000); /* the default */
+    assert_true(tu_json_number(par, "max_vertices") == 1000000); /* the default */
     /* and the counts of the line are those of the JSON */
     snprintf(want, sizeof want, ": %.0f vertices, %.0f facets written, ", nv, nf);
     if (!strstr(line, want)) fail_msg("'%s' lacks '%s'", line, want);

@@ -358,7 +358,7 @@ static void test_bad_parameters(void **state) {
     assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_RHO0, &v), ANISTAR_OK);
     assert_true(v == 3.0);
     assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_PICK_TRIES, &v), ANISTAR_OK);
-    assert_true(v == 60);
+    assert_true(v == 20);
     assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_DELTA, 0.5), ANISTAR_OK);
     assert_int_equal(anistar_mesher_get(me, ANISTAR_PARAM_DELTA, &v), ANISTAR_OK);
     assert_true(v == 0.5);

@@ -24,7 +24,7 @@ void as_mesher_params_default(as_mesher_params *p) {
     p->max_vertices = AS_MAX_VERTICES_DEFAULT;
     p->max_stall = 0;
     p->seed = 0;
-    p->pick_tries = 60;
+    p->pick_tries = 20; /* design: measured, see docs/algorithm.md §9 (Pick_valid) */
     p->optimize = 0;
     p->aniso_cap = 1;
 }

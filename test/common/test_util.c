@@ -190,13 +190,42 @@ char *tu_read_file(const char *path) {
 }
 
 const char *tu_json_value(const char *json, const char *key) {
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\":", key);
-    const char *p = strstr(json, pat);
-    if (!p) return NULL;
-    p += strlen(pat);
-    while (*p == ' ') p++;
-    return p;
+    /* design: only the members of the object json starts with (not nested ones, whose
+     * keys may repeat: "optimize" is a key of "seconds" too); a text that does not start
+     * with an object is searched as a whole */
+    const char *p = json;
+    while (*p == ' ' || *p == '\n' || *p == '\t' || *p == '\r') p++;
+    size_t kl = strlen(key);
+    if (*p != '{') {
+        char pat[64];
+        snprintf(pat, sizeof pat, "\"%s\":", key);
+        const char *q = strstr(json, pat);
+        if (!q) return NULL;
+        q += strlen(pat);
+        while (*q == ' ') q++;
+        return q;
+    }
+    int depth = 0;
+    for (; *p; p++) {
+        if (*p == '"') {
+            const char *b = ++p;
+            while (*p && *p != '"') p += (*p == '\\' && p[1]) ? 2 : 1;
+            if (!*p) return NULL;
+            const char *e = p; /* the closing quote */
+            const char *q = p + 1;
+            while (*q == ' ' || *q == '\n' || *q == '\t' || *q == '\r') q++;
+            if (depth == 1 && *q == ':' && (size_t)(e - b) == kl && !strncmp(b, key, kl)) {
+                q++;
+                while (*q == ' ' || *q == '\n' || *q == '\t' || *q == '\r') q++;
+                return q;
+            }
+        } else if (*p == '{' || *p == '[') {
+            depth++;
+        } else if (*p == '}' || *p == ']') {
+            if (--depth == 0) return NULL;
+        }
+    }
+    return NULL;
 }
 
 double tu_json_number(const char *json, const char *key) {

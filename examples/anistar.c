@@ -1281,7 +1281,7 @@ static void help(void) {
            "radius_edge and anisotropy); --sol writes the vertex tensors (Medit .sol or\n"
            "binary .solb), --stats a JSON of statistics.\n"
            "Defaults: r0 0.1, gamma0 1.5, rho0 3, beta 2.5, delta 0.3, approx 0 (off),\n"
-           "max-vertices 1000000 (0: the hard limit 2096128 = 2^21 - 1024, not 'no limit';\n"
+           "max-vertices 1000000 (0: the hard limit 2147482623 = 2^31 - 1025, not 'no limit';\n"
            "a run whose up-front estimate exceeds it is refused, status 1), max-seconds 0\n"
            "(no limit), max-stall 0\n"
            "(automatic, at least 50000; N: stop after N insertions without a new low of the\n"

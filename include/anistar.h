@@ -494,9 +494,9 @@ typedef enum anistar_param {
                                    (default 0) */
     ANISTAR_PARAM_MAX_VERTICES, /* stop (ANISTAR_INCOMPLETE) at this many vertices, and
                                    refuse at once (ANISTAR_EINVAL) a run whose up-front
-                                   estimate exceeds it; integer in [0, 2000000], 0 = the
-                                   hard limit of the star set, 2096128 sites
-                                   (2^21 - 1024) (default 1000000) */
+                                   estimate exceeds it; integer in [0, 2147482623], 0 = the
+                                   hard limit of the star set, 2147482623 sites
+                                   (2^31 - 1025: 32-bit global ids) (default 1000000) */
     ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
                                    refinement; >= 0, 0 = no limit (default) */
     ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in

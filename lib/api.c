@@ -228,9 +228,10 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
         p->approx = value;
         return ANISTAR_OK;
     case ANISTAR_PARAM_MAX_VERTICES:
-        if (!as_api_is_int(value, 0, 2000000))
+        if (!as_api_is_int(value, 0, (double)AS_MESHER_MAX_SITES))
             return as_fail(ctx, ANISTAR_EINVAL,
-                           "max_vertices must be an integer in [0, 2000000], got %g", value);
+                           "max_vertices must be an integer in [0, %lld], got %g",
+                           (long long)AS_MESHER_MAX_SITES, value);
         p->max_vertices = (int64_t)value;
         return ANISTAR_OK;
     case ANISTAR_PARAM_MAX_SECONDS:

@@ -97,6 +97,17 @@ static inline void *as_alloc_array(anistar_context *ctx, size_t count, size_t si
     return as_alloc(ctx, n);
 }
 
+/* Global ids of the mesher's points (corners, poles, sites; lib/mesher/starset.h): the
+ * width of every id the star set stores (star vertices, restricted facets, facet keys,
+ * queues, events) is this one switch. 32 bits by default, measured: 64-bit ids cost
+ * about 10% more memory per output vertex (docs/algorithm.md, "Memory"), and 2^31 sites
+ * is 5 TB of stars at our bytes per vertex. Build with -DAS_GID64 for 64-bit storage. */
+#ifdef AS_GID64
+typedef int64_t as_gid;
+#else
+typedef int32_t as_gid;
+#endif
+
 /* Grow *p (an array of *cap elements of elem bytes) to hold at least need elements,
  * geometric growth. Returns 0 on success, -1 on failure (then *p and *cap unchanged). */
 int as_grow(anistar_context *ctx, void **p, size_t *cap, size_t need, size_t elem);

@@ -30,11 +30,11 @@ typedef struct mcase {
     long long chi;
 } mcase;
 
-static void sort3(int32_t g[3]) {
+static void sort3(as_gid g[3]) {
     for (int a = 0; a < 3; a++)
         for (int b = a + 1; b < 3; b++)
             if (g[b] < g[a]) {
-                int32_t t = g[a];
+                as_gid t = g[a];
                 g[a] = g[b];
                 g[b] = t;
             }
@@ -440,7 +440,7 @@ static void test_max_vertices_incomplete(void **state) {
     /* every output triangle is consistent: all three stars hold it */
     for (size_t t = 0; t < mesh->tm.nt; t++) {
         /* map output indices back to global ids: output order is increasing global id */
-        int32_t g[3];
+        as_gid g[3];
         for (int k = 0; k < 3; k++) {
             const double *x = mesh->tm.xyz + 3 * (size_t)mesh->tm.tri[3 * t + k];
             g[k] = -1;
@@ -454,6 +454,61 @@ static void test_max_vertices_incomplete(void **state) {
         assert_int_equal(e->mask, 7);
     }
     assert_int_equal(as_starset_check_table(ss), ANISTAR_OK);
+    as_starset_destroy(ss);
+    free(ss);
+    as_mesh_free(mesh);
+    as_field_free(f);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* The id limit (issue 15): global ids are 32-bit, the star set refuses an id at or past
+ * ss->max_ids and the refiner stops 1024 sites short of it, INCOMPLETE with a message that
+ * names the limit. Checked with the limit lowered (max_ids, a test parameter) instead of
+ * allocating 2^31 points. */
+static void test_id_limit(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    as_field *f;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    /* the run of test_max_vertices_incomplete: its estimate (10,400) stays below the limit
+     * (else the run is refused up front), the mesh needs more */
+    assert_int_equal(as_field_from_spec(ctx, s, "shock", &f), ANISTAR_OK);
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.3;
+    p.aniso_cap = 0;
+    p.max_vertices = 0; /* the hard limit */
+    p.max_ids = AS_MESHER_ID_RESERVE + 11000;
+    anistar_mesh *mesh;
+    as_starset *ss;
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_INCOMPLETE);
+    assert_int_equal(mesh->stats.stop_reason, ANISTAR_STOP_MAX_VERTICES);
+    assert_int_equal(ss->n - ss->first_site, 11000);
+    assert_non_null(strstr(anistar_last_error(ctx), "hard limit of 11000 vertices"));
+    assert_int_equal(as_starset_check_table(ss), ANISTAR_OK);
+    /* the star set itself: one id past the limit is refused, nothing changes */
+    ss->max_ids = ss->n;
+    int32_t n0 = ss->n, gid = -1;
+    const double q[3] = {0, 0, 1};
+    assert_int_equal(as_starset_insert(ss, q, &gid), ANISTAR_EINVAL);
+    assert_non_null(strstr(anistar_last_error(ctx), "the limit of global ids"));
+    assert_int_equal(ss->n, n0);
+    assert_int_equal(as_starset_check_table(ss), ANISTAR_OK);
+    /* the public range of max_vertices reaches the hard limit, and no further */
+    anistar_mesher *me = NULL;
+    anistar_surface *ps = NULL;
+    anistar_metric *pm = NULL;
+    assert_int_equal(anistar_surface_builtin(ctx, "sphere", &ps), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, ps, "euclidean", &pm), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, ps, pm, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_MAX_VERTICES, 2147482623.0), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_MAX_VERTICES, 2147482624.0),
+                     ANISTAR_EINVAL);
+    anistar_mesher_free(me);
+    anistar_metric_free(pm);
+    anistar_surface_free(ps);
     as_starset_destroy(ss);
     free(ss);
     as_mesh_free(mesh);
@@ -529,6 +584,7 @@ int main(void) {
         cmocka_unit_test(test_chair_curvature),
         cmocka_unit_test(test_aniso_cap),
         cmocka_unit_test(test_max_vertices_incomplete),
+        cmocka_unit_test(test_id_limit),
         cmocka_unit_test(test_approx_error_sphere),
         cmocka_unit_test(test_determinism_and_threads),
     };

@@ -17,7 +17,7 @@
 /* Parameters (DESIGN.md 4.5; public setters check the ranges). */
 typedef struct as_mesher_params {
     double r0, gamma0, rho0, beta, delta, approx, max_seconds;
-    int64_t max_vertices; /* surface sites; 0: the hard limit (AS_STARSET_MAX_IDS) */
+    int64_t max_vertices; /* surface sites; 0: the hard limit (AS_MESHER_MAX_SITES) */
     int64_t max_stall;    /* stall budget in insertions; 0: automatic (AS_STALL_MIN, 2 V) */
     uint64_t seed;
     int32_t pick_tries;
@@ -30,6 +30,8 @@ typedef struct as_mesher_params {
     double hmax;            /* Euclidean size ceiling: facets whose longest edge is longer are
                                refined (rule 1); 0: none */
     int32_t aniso_cap;      /* 1: the rotation floor of the metric (starset.c) */
+    int32_t max_ids;        /* tests: the star set's id limit (0: AS_STARSET_MAX_IDS); the
+                               hard limit on sites is 1024 below it */
 } as_mesher_params;
 
 void as_mesher_params_default(as_mesher_params *p);
@@ -37,6 +39,10 @@ void as_mesher_params_default(as_mesher_params *p);
 /* The default of max_vertices, and the automatic stall budget: the larger of
  * AS_STALL_MIN and AS_STALL_PER_VERTEX times the vertices so far. */
 #define AS_MAX_VERTICES_DEFAULT 1000000
+/* The hard limit on sites: the id limit less 1024 ids for the 8 corners, at most 256 poles
+ * and Pick_valid's provisional id (2,147,482,623). */
+#define AS_MESHER_ID_RESERVE 1024
+#define AS_MESHER_MAX_SITES ((int64_t)AS_STARSET_MAX_IDS - AS_MESHER_ID_RESERVE)
 #define AS_STALL_MIN 50000
 #define AS_STALL_PER_VERTEX 2
 
@@ -81,7 +87,7 @@ struct anistar_mesh {
     anistar_context *ctx;
     as_trimesh tm;              /* vertices, triangles (outward), per-vertex tensors */
     anistar_mesh_stats stats;
-    int32_t *gid;               /* per vertex: its global id in the star set (internal) */
+    as_gid *gid;                /* per vertex: its global id in the star set (internal) */
     size_t ngid;
     double *rho;                /* per triangle: the largest radius-edge ratio in its three
                                    vertex metrics (as_radius_edge), the statistics' rho */

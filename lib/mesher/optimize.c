@@ -106,7 +106,7 @@ static double star_rho2(const as_starset *ss, const as_star *st, const as_metric
                         int32_t v, const double xv[3]) {
     double sum = 0;
     for (int32_t i = 0; i < st->nrf; i++) {
-        const int32_t *g = st->rf[i].g;
+        const as_gid *g = st->rf[i].g;
         const double *x[3];
         for (int k = 0; k < 3; k++) x[k] = g[k] == v ? xv : ss->xyz + 3 * (size_t)g[k];
         double rho = as_radius_edge(mf, x[0], x[1], x[2], NULL);
@@ -152,7 +152,7 @@ static int promising(const as_starset *ss, const as_mesher_params *prm, int32_t 
     const as_star *st = ss->stars[v];
     double before = 0, after = 0;
     for (int32_t i = 0; i < st->nrf; i++) {
-        const int32_t *g = st->rf[i].g;
+        const as_gid *g = st->rf[i].g;
         const double *a[3], *b[3];
         for (int k = 0; k < 3; k++) {
             a[k] = ss->xyz + 3 * (size_t)g[k];

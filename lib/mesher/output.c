@@ -241,11 +241,11 @@ static int tri_pos(const int32_t *tri, int32_t t, int32_t a) {
     return -1;
 }
 
-static void sort_g3(int32_t g[3]) {
+static void sort_g3(as_gid g[3]) {
     for (int a = 0; a < 2; a++)
         for (int b = a + 1; b < 3; b++)
             if (g[b] < g[a]) {
-                int32_t t = g[a];
+                as_gid t = g[a];
                 g[a] = g[b];
                 g[b] = t;
             }
@@ -601,7 +601,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                 for (int32_t j = start[a]; j < start[a + 1]; j++) {
                     int32_t u = inc[j];
                     if (tri_pos(tm->tri, u, b) < 0) continue;
-                    int32_t g[3];
+                    as_gid g[3];
                     for (int i = 0; i < 3; i++) g[i] = m->gid[tm->tri[3 * (size_t)u + i]];
                     sort_g3(g);
                     const as_star *sv = ss->stars[g[0]];

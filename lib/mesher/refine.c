@@ -33,7 +33,8 @@ void as_mesher_params_default(as_mesher_params *p) {
 
 static int q_before(const as_qentry *a, const as_qentry *b) {
     if (a->pri != b->pri) return a->pri > b->pri;
-    if (a->key != b->key) return a->key < b->key;
+    int c = as_fkey_cmp(&a->key, &b->key);
+    if (c != 0) return c < 0;
     return a->star < b->star;
 }
 
@@ -79,7 +80,7 @@ void as_queue_free(anistar_context *ctx, as_queue *q) {
 
 /* ---- rule tests --------------------------------------------------------------------- */
 
-double as_facet_longest_edge(const as_starset *ss, const int32_t g[3]) {
+double as_facet_longest_edge(const as_starset *ss, const as_gid g[3]) {
     const double *a = ss->xyz + 3 * (size_t)g[0], *b = ss->xyz + 3 * (size_t)g[1],
                  *c = ss->xyz + 3 * (size_t)g[2];
     double l = 0;
@@ -207,6 +208,7 @@ typedef struct refiner {
     size_t inc_low;
     uint64_t n3, low_at;
     int64_t low_vertices;
+    int hard_limit; /* the vertex limit in force is the star set's hard limit */
 } refiner;
 
 static uint64_t rng_next(refiner *R) {
@@ -236,7 +238,7 @@ static anistar_status drain(refiner *R) {
         int32_t i = as_star_find(st, e->g);
         if (i < 0) continue;
         as_rfacet *f = &st->rf[i];
-        uint64_t key = as_facet_key(f->g);
+        as_fkey key = as_facet_key(f->g);
         if (!(f->queued & 1)) {
             double v1 = as_rule1_violation(ss, R->prm, e->star, f, NULL, &s);
             if (s != ANISTAR_OK) return s;
@@ -265,8 +267,7 @@ static anistar_status drain(refiner *R) {
     for (size_t k = 0; k < ss->nnewinc; k++) {
         as_ftab_entry *te = as_starset_lookup(ss, ss->newinc[k]);
         if (!te || te->incpos < 0 || te->queued) continue;
-        int32_t g[3];
-        as_facet_unkey(te->key, g);
+        const as_gid *g = te->key.g;
         /* the priority: r of the lowest star holding it */
         for (int b = 0; b < 3; b++) {
             if (!(te->mask & (1u << b))) continue;
@@ -350,7 +351,7 @@ static anistar_status site_within(as_starset *ss, const double p[3], int32_t v, 
 }
 
 anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
-                                     const int32_t g[3], double r) {
+                                     const as_gid g[3], double r) {
     anistar_context *ctx = ss->ctx;
     double lim = AS_NEAR_SITE * r, d;
     int32_t q;
@@ -737,8 +738,7 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
     for (int k = 0; k < 3; k++) {
         as_qentry e;
         while (as_queue_pop(&R->q[k], &e)) {
-            int32_t g[3];
-            as_facet_unkey(e.key, g);
+            const as_gid *g = e.key.g;
             if (k < 2) {
                 as_star *st = ss->stars[e.star];
                 int32_t i = as_star_find(st, g);
@@ -886,6 +886,14 @@ static void stop_message(refiner *R) {
     long long v = (long long)(ss->n - ss->first_site);
     switch (R->cnt.stop_reason) {
     case ANISTAR_STOP_MAX_VERTICES:
+        if (R->hard_limit) {
+            as_fail(R->ctx, ANISTAR_INCOMPLETE,
+                    "mesher: stopped at the hard limit of %lld vertices (global ids: "
+                    "docs/algorithm.md, memory; %zu inconsistent facets left; the up-front "
+                    "estimate was %.0f)",
+                    v, ss->ninc, R->cnt.estimate_vertices);
+            break;
+        }
         as_fail(R->ctx, ANISTAR_INCOMPLETE,
                 "mesher: stopped at max_vertices (%lld vertices; %zu inconsistent facets left; "
                 "the up-front estimate was %.0f)",
@@ -949,9 +957,12 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     as_starset *ss = as_alloc(ctx, sizeof *ss);
     if (!ss) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
     R.ss = ss;
-    int64_t maxv = prm->max_vertices > 0 ? prm->max_vertices : AS_STARSET_MAX_IDS - 1024;
-    if (maxv > AS_STARSET_MAX_IDS - 1024) maxv = AS_STARSET_MAX_IDS - 1024;
     anistar_status s = as_starset_init(ss, ctx, surf, field);
+    if (prm->max_ids > 0) ss->max_ids = prm->max_ids;
+    /* the hard limit: global ids are as_gid, counts and indexes int32 (starset.h) */
+    const int64_t hardv = (int64_t)ss->max_ids - AS_MESHER_ID_RESERVE;
+    int64_t maxv = prm->max_vertices > 0 && prm->max_vertices < hardv ? prm->max_vertices : hardv;
+    R.hard_limit = maxv == hardv;
     if (prm->alpha0 > 0) ss->alpha = prm->alpha0;
     /* design: the automatic hmin is the surface's own resolution, the floor of the local
      * feature size: what keeps distortion refinement finite where a metric from data

@@ -11,8 +11,8 @@
 /* One entry of a rule queue: a facet (packed triple) of a star, its violation. */
 typedef struct as_qentry {
     double pri;
-    uint64_t key;
-    int32_t star;
+    as_fkey key;
+    as_gid star;
 } as_qentry;
 
 /* A binary max-heap (largest violation first; ties by key then star: deterministic). */
@@ -39,7 +39,7 @@ void as_queue_free(anistar_context *ctx, as_queue *q);
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f, int *cause, anistar_status *err);
 /* The longest Euclidean edge of the facet with global ids g (ss->hmax refines above it). */
-double as_facet_longest_edge(const as_starset *ss, const int32_t g[3]);
+double as_facet_longest_edge(const as_starset *ss, const as_gid g[3]);
 /* 1 if ss->hmin > 0 and f's surface center lies within hmin (Euclidean) of one of f's
  * vertices: refining f would make an edge shorter than hmin, so no size, distortion,
  * approximation or shape rule applies to it. */
@@ -61,7 +61,7 @@ int as_facet_below_hmin(const as_starset *ss, const as_rfacet *f);
  * Returns OK, or EINTERNAL naming the point, the facet, the star and the site; ENOMEM.
  */
 anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t v,
-                                     const int32_t g[3], double r);
+                                     const as_gid g[3], double r);
 
 /*
  * The up-front estimate (DESIGN.md 4.5) of the run's output vertex count and peak memory

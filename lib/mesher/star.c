@@ -199,20 +199,20 @@ static anistar_status dual_crossing(const as_star_env *env, const double a[3], c
     return ANISTAR_OK;
 }
 
-static int cmp_g(const int32_t a[3], const int32_t b[3]) {
+static int cmp_g(const as_gid a[3], const as_gid b[3]) {
     for (int k = 0; k < 3; k++)
         if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
     return 0;
 }
 
-static void sort3(int32_t g[3]) {
-    int32_t t;
+static void sort3(as_gid g[3]) {
+    as_gid t;
     if (g[0] > g[1]) { t = g[0]; g[0] = g[1]; g[1] = t; }
     if (g[1] > g[2]) { t = g[1]; g[1] = g[2]; g[2] = t; }
     if (g[0] > g[1]) { t = g[0]; g[0] = g[1]; g[1] = t; }
 }
 
-int32_t as_star_find(const as_star *st, const int32_t g[3]) {
+int32_t as_star_find(const as_star *st, const as_gid g[3]) {
     int32_t lo = 0, hi = st->nrf;
     while (lo < hi) {
         int32_t mid = (lo + hi) / 2;
@@ -224,7 +224,7 @@ int32_t as_star_find(const as_star *st, const int32_t g[3]) {
     return -1;
 }
 
-static int32_t find_in(const as_rfacet *rf, int32_t n, const int32_t g[3]) {
+static int32_t find_in(const as_rfacet *rf, int32_t n, const as_gid g[3]) {
     int32_t lo = 0, hi = n;
     while (lo < hi) {
         int32_t mid = (lo + hi) / 2;
@@ -390,11 +390,12 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         if ((s = tet_inside(env, st, mf, t1, &in1)) != ANISTAR_OK) return s;
         if ((s = tet_inside(env, st, mf, t2, &in2)) != ANISTAR_OK) return s;
         if (in1 == in2) continue;
-        int32_t g[3], lv[3], n = 0;
+        as_gid g[3];
+        int32_t lv[3], n = 0;
         for (int j = 0; j < 4; j++) {
             if (j == (face & 3)) continue;
             lv[n] = as_del3_tet_vertex(d, t1, j);
-            g[n] = (int32_t)d->gid[lv[n]];
+            g[n] = (as_gid)d->gid[lv[n]];
             n++;
         }
         sort3(g);

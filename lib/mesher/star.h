@@ -32,7 +32,7 @@
 
 /* A restricted facet of a star (always incident to the star's center). */
 typedef struct as_rfacet {
-    int32_t g[3];  /* global ids, ascending */
+    as_gid g[3];   /* global ids, ascending */
     int32_t face;  /* 4t+i in the star's del3 (valid until the star changes) */
     double c[3];   /* surface center c_v(tau) on S */
     double r;      /* r_v(tau) = |F_v (c - v)| */
@@ -48,7 +48,7 @@ typedef struct as_star_env {
 } as_star_env;
 
 typedef struct as_star {
-    int32_t gid;        /* the center v */
+    as_gid gid;         /* the center v */
     int32_t vloc;       /* v's vertex in del */
     as_del3 del;
     uint8_t *tflag;     /* per tet slot: bits 0-1 inside state (0 unknown, 1 out, 2 in),
@@ -168,7 +168,7 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
                       int64_t gid, int32_t *hint);
 
 /* The index of the restricted facet with sorted ids g in st->rf, or -1. */
-int32_t as_star_find(const as_star *st, const int32_t g[3]);
+int32_t as_star_find(const as_star *st, const as_gid g[3]);
 
 /* 1 if the facets rf[0..n) (all incident to v) form exactly one closed fan around v. */
 int as_star_fan_closed(const as_rfacet *rf, int32_t n, int32_t v);

@@ -11,14 +11,16 @@
 
 /* ---- points ------------------------------------------------------------------------ */
 
-static anistar_status grow_points(as_starset *ss, int32_t need) {
+static anistar_status grow_points(as_starset *ss, int64_t need) {
+    if (need < 0 || need > ss->max_ids)
+        return as_fail(ss->ctx, ANISTAR_EINVAL,
+                       "mesher: too many points (the limit of global ids is %ld: "
+                       "docs/algorithm.md, memory)",
+                       (long)ss->max_ids);
     if (need <= ss->cap) return ANISTAR_OK;
-    if (need > AS_STARSET_MAX_IDS)
-        return as_fail(ss->ctx, ANISTAR_EINVAL, "mesher: too many points (limit %d)",
-                       (int)AS_STARSET_MAX_IDS);
     size_t cap = ss->cap ? (size_t)ss->cap : 256;
     while (cap < (size_t)need) cap *= 2;
-    if (cap > (size_t)AS_STARSET_MAX_IDS) cap = (size_t)AS_STARSET_MAX_IDS;
+    if (cap > (size_t)ss->max_ids) cap = (size_t)ss->max_ids;
     size_t old = (size_t)ss->cap;
     /* design: allocate all four arrays first, so a failure changes nothing */
     double *x = as_alloc_array(ss->ctx, cap, 3 * sizeof *x);
@@ -271,7 +273,12 @@ anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_fr
 
 /* ---- facet table --------------------------------------------------------------------- */
 
-static inline size_t hash_key(uint64_t k) {
+/* design: the three ids mixed into one word (a multiply-xorshift per id), then the
+ * murmur3 finalizer: any id width, no packing limit */
+static inline size_t hash_key(const as_fkey *key) {
+    uint64_t k = (uint64_t)key->g[0] * 0x9E3779B97F4A7C15ULL;
+    k = (k ^ (k >> 29)) + (uint64_t)key->g[1] * 0xC2B2AE3D27D4EB4FULL;
+    k = (k ^ (k >> 29)) + (uint64_t)key->g[2] * 0x165667B19E3779F9ULL;
     k ^= k >> 33;
     k *= 0xff51afd7ed558ccdULL;
     k ^= k >> 33;
@@ -280,21 +287,19 @@ static inline size_t hash_key(uint64_t k) {
     return (size_t)k;
 }
 
-as_ftab_entry *as_starset_lookup(const as_starset *ss, uint64_t key) {
+as_ftab_entry *as_starset_lookup(const as_starset *ss, as_fkey key) {
     if (!ss->tab_cap) return NULL;
-    size_t m = ss->tab_cap - 1, i = hash_key(key) & m;
+    size_t m = ss->tab_cap - 1, i = hash_key(&key) & m;
     for (;;) {
         as_ftab_entry *e = &ss->tab[i];
-        if (e->key == key) return e;
-        if (e->key == 0) return NULL;
+        if (!e->mask) return NULL;
+        if (as_fkey_eq(&e->key, &key)) return e;
         i = (i + 1) & m;
     }
 }
 
-int as_starset_consistent(const as_starset *ss, uint64_t key, uint8_t mask) {
-    int32_t g[3];
-    as_facet_unkey(key, g);
-    return mask == 7 && g[0] >= ss->first_site;
+int as_starset_consistent(const as_starset *ss, as_fkey key, uint8_t mask) {
+    return mask == 7 && key.g[0] >= ss->first_site;
 }
 
 static anistar_status tab_rehash(as_starset *ss, size_t cap) {
@@ -303,9 +308,9 @@ static anistar_status tab_rehash(as_starset *ss, size_t cap) {
     memset(t, 0, cap * sizeof *t);
     for (size_t i = 0; i < ss->tab_cap; i++) {
         as_ftab_entry *e = &ss->tab[i];
-        if (!e->key) continue;
-        size_t j = hash_key(e->key) & (cap - 1);
-        while (t[j].key) j = (j + 1) & (cap - 1);
+        if (!e->mask) continue;
+        size_t j = hash_key(&e->key) & (cap - 1);
+        while (t[j].mask) j = (j + 1) & (cap - 1);
         t[j] = *e;
     }
     as_free(ss->ctx, ss->tab, ss->tab_cap * sizeof *ss->tab);
@@ -315,6 +320,9 @@ static anistar_status tab_rehash(as_starset *ss, size_t cap) {
 }
 
 static anistar_status inc_add(as_starset *ss, as_ftab_entry *e) {
+    if (ss->ninc >= (size_t)INT32_MAX)
+        return as_fail(ss->ctx, ANISTAR_EINVAL,
+                       "mesher: too many inconsistent facets (limit %d)", (int)INT32_MAX);
     if (ss->ninc == ss->cap_inc &&
         as_grow(ss->ctx, (void **)&ss->inc, &ss->cap_inc, ss->ninc + 1, sizeof *ss->inc))
         return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (inconsistent set)");
@@ -325,7 +333,7 @@ static anistar_status inc_add(as_starset *ss, as_ftab_entry *e) {
 
 static void inc_remove(as_starset *ss, as_ftab_entry *e) {
     size_t pos = (size_t)e->incpos;
-    uint64_t last = ss->inc[--ss->ninc];
+    as_fkey last = ss->inc[--ss->ninc];
     if (pos != ss->ninc) {
         ss->inc[pos] = last;
         as_ftab_entry *o = as_starset_lookup(ss, last);
@@ -340,8 +348,8 @@ static void tab_delete(as_starset *ss, as_ftab_entry *e) {
     size_t j = i;
     for (;;) {
         j = (j + 1) & m;
-        if (!ss->tab[j].key) break;
-        size_t h = hash_key(ss->tab[j].key) & m;
+        if (!ss->tab[j].mask) break;
+        size_t h = hash_key(&ss->tab[j].key) & m;
         /* can the entry at j move to i? yes if h is not in the cyclic range (i, j] */
         int move = (i <= j) ? (h <= i || h > j) : (h <= i && h > j);
         if (move) {
@@ -353,7 +361,7 @@ static void tab_delete(as_starset *ss, as_ftab_entry *e) {
     ss->tab_n--;
 }
 
-static anistar_status push_newinc(as_starset *ss, uint64_t key) {
+static anistar_status push_newinc(as_starset *ss, as_fkey key) {
     if (ss->nnewinc == ss->cap_newinc &&
         as_grow(ss->ctx, (void **)&ss->newinc, &ss->cap_newinc, ss->nnewinc + 1,
                 sizeof *ss->newinc))
@@ -363,8 +371,8 @@ static anistar_status push_newinc(as_starset *ss, uint64_t key) {
 }
 
 /* Set (on = 1) or clear the bit of star v in the entry of triple g. */
-static anistar_status tab_bit(as_starset *ss, const int32_t g[3], int32_t v, int on) {
-    uint64_t key = as_facet_key(g);
+static anistar_status tab_bit(as_starset *ss, const as_gid g[3], int32_t v, int on) {
+    as_fkey key = as_facet_key(g);
     int bit = g[0] == v ? 0 : g[1] == v ? 1 : 2;
     anistar_status s;
     as_ftab_entry *e = as_starset_lookup(ss, key);
@@ -373,8 +381,8 @@ static anistar_status tab_bit(as_starset *ss, const int32_t g[3], int32_t v, int
         if ((ss->tab_n + 1) * 4 > ss->tab_cap * 3 || ss->tab_cap == 0) {
             if ((s = tab_rehash(ss, ss->tab_cap ? ss->tab_cap * 2 : 1024)) != ANISTAR_OK) return s;
         }
-        size_t m = ss->tab_cap - 1, i = hash_key(key) & m;
-        while (ss->tab[i].key) i = (i + 1) & m;
+        size_t m = ss->tab_cap - 1, i = hash_key(&key) & m;
+        while (ss->tab[i].mask) i = (i + 1) & m;
         e = &ss->tab[i];
         e->key = key;
         e->mask = 0;
@@ -383,7 +391,9 @@ static anistar_status tab_bit(as_starset *ss, const int32_t g[3], int32_t v, int
         ss->tab_n++;
     }
     uint8_t mask = on ? (uint8_t)(e->mask | (1u << bit)) : (uint8_t)(e->mask & ~(1u << bit));
-    e->mask = mask;
+    /* design: a mask of 0 marks an empty slot, so an entry that empties keeps its old
+     * mask until tab_delete (inc_remove still looks other keys up through it) */
+    if (mask) e->mask = mask;
     int now_inc = mask != 0 && !as_starset_consistent(ss, key, mask);
     int was_inc = e->incpos >= 0;
     if (now_inc && !was_inc) {
@@ -396,13 +406,13 @@ static anistar_status tab_bit(as_starset *ss, const int32_t g[3], int32_t v, int
     return ANISTAR_OK;
 }
 
-static int cmp_g3(const int32_t a[3], const int32_t b[3]) {
+static int cmp_g3(const as_gid a[3], const as_gid b[3]) {
     for (int k = 0; k < 3; k++)
         if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
     return 0;
 }
 
-static anistar_status push_event(as_starset *ss, int32_t v, const int32_t g[3]) {
+static anistar_status push_event(as_starset *ss, int32_t v, const as_gid g[3]) {
     if (ss->nev == ss->cap_ev &&
         as_grow(ss->ctx, (void **)&ss->ev, &ss->cap_ev, ss->nev + 1, sizeof *ss->ev))
         return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (events)");
@@ -449,6 +459,7 @@ static anistar_status apply_diff(as_starset *ss, int32_t v, const as_rfacet *old
 anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_surface *surf,
                                const as_field *field) {
     memset(ss, 0, sizeof *ss);
+    ss->max_ids = AS_STARSET_MAX_IDS;
     ss->ctx = ctx;
     ss->surf = surf;
     ss->field = field;
@@ -615,7 +626,7 @@ anistar_status as_starset_add_poles(as_starset *ss, const double *smp, int32_t n
     int32_t npoles = 0;
     while (npoles < max_poles) {
         const double *c = cand + 3 * pick;
-        if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) goto done;
+        if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) goto done;
         int32_t g = ss->n++;
         memcpy(ss->xyz + 3 * (size_t)g, c, 3 * sizeof(double));
         identity_frame(&ss->mf[g]);
@@ -923,7 +934,7 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
         const int by_zone = simulate && sv->closed;
         if (by_zone) as_metric_apply(&ss->mf[v], p, y);
         for (int32_t i = 0; i < sv->nrf; i++) {
-            const int32_t *g = sv->rf[i].g;
+            const as_gid *g = sv->rf[i].g;
             if (!simulate && g[0] != gid && g[1] != gid && g[2] != gid) continue;
             if (by_zone) {
                 const double *z = sv->zone + 4 * (size_t)i;
@@ -947,7 +958,7 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
 }
 
 /* Position of triple g in the sorted facets keep[0..n), or -1. */
-static int32_t find_keep(const as_rfacet *keep, int32_t n, const int32_t g[3]) {
+static int32_t find_keep(const as_rfacet *keep, int32_t n, const as_gid g[3]) {
     int32_t lo = 0, hi = n;
     while (lo < hi) {
         int32_t mid = lo + (hi - lo) / 2;
@@ -1019,7 +1030,7 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
 
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
     anistar_status s;
-    if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) return s;
+    if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
     int32_t gid = ss->n;
     memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
     if ((s = as_starset_metric(ss, p, &ss->mf[gid])) != ANISTAR_OK) return s;
@@ -1095,7 +1106,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
 anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
                                    as_star **out) {
     anistar_status s;
-    if ((s = grow_points(ss, ss->n + 1)) != ANISTAR_OK) return s;
+    if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
     int32_t gid = ss->n; /* provisional: the slot past the last point */
     memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
     size_t nl;
@@ -1114,30 +1125,28 @@ anistar_status as_starset_check_table(as_starset *ss) {
         as_star *st = ss->stars[v];
         if (!st) continue;
         for (int32_t k = 0; k < st->nrf; k++) {
-            const int32_t *g = st->rf[k].g;
+            const as_gid *g = st->rf[k].g;
             as_ftab_entry *e = as_starset_lookup(ss, as_facet_key(g));
             int bit = g[0] == v ? 0 : g[1] == v ? 1 : 2;
             if (!e || !(e->mask & (1u << bit)))
                 return as_fail(ss->ctx, ANISTAR_EINTERNAL,
-                               "facet table: (%d %d %d) of star %d missing", (int)g[0], (int)g[1],
-                               (int)g[2], (int)v);
+                               "facet table: (%lld %lld %lld) of star %d missing", (long long)g[0],
+                               (long long)g[1], (long long)g[2], (int)v);
             total_bits++;
         }
     }
     size_t entries = 0, bits = 0, incs = 0;
     for (size_t i = 0; i < ss->tab_cap; i++) {
         as_ftab_entry *e = &ss->tab[i];
-        if (!e->key) continue;
+        if (!e->mask) continue; /* an empty slot */
         entries++;
         for (int b = 0; b < 3; b++) bits += (e->mask >> b) & 1;
-        int inc = e->mask && !as_starset_consistent(ss, e->key, e->mask);
-        if (e->mask == 0)
-            return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: empty entry kept");
+        int inc = !as_starset_consistent(ss, e->key, e->mask);
         if (inc != (e->incpos >= 0))
             return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: inconsistent flag wrong");
         if (inc) {
             incs++;
-            if ((size_t)e->incpos >= ss->ninc || ss->inc[e->incpos] != e->key)
+            if ((size_t)e->incpos >= ss->ninc || !as_fkey_eq(&ss->inc[e->incpos], &e->key))
                 return as_fail(ss->ctx, ANISTAR_EINTERNAL, "facet table: bad set position");
         }
         if (as_starset_lookup(ss, e->key) != e)

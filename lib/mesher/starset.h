@@ -14,7 +14,9 @@
  * set of inconsistent facets is kept exactly, updated from the difference of a star's
  * restricted facets before and after each change (never by rescanning).
  *
- * Limits: global ids below 2^21 (the table packs a triple into 64 bits).
+ * Limits: global ids (as_gid, core.h) below ss->max_ids, AS_STARSET_MAX_IDS unless a test
+ * lowers it: counts, loops and the spatial indexes are int32, so 2^31 - 1 whatever the
+ * width of the stored ids; the refiner stops 1024 sites short of it (docs/algorithm.md).
  */
 #ifndef ANISTAR_STARSET_H
 #define ANISTAR_STARSET_H
@@ -28,19 +30,25 @@
 #include "mesher/star.h"
 #include "surface/field.h"
 
-#define AS_STARSET_MAX_IDS ((int32_t)1 << 21)
+#define AS_STARSET_MAX_IDS INT32_MAX
+
+/* A facet's key: its three global ids, ascending (no packing: any id width). Keys compare
+ * lexicographically (as_fkey_cmp), the order of the refiner's ties. */
+typedef struct as_fkey {
+    as_gid g[3];
+} as_fkey;
 
 typedef struct as_ftab_entry {
-    uint64_t key;   /* packed sorted triple; 0 = empty slot */
+    as_fkey key;    /* valid while mask != 0 */
     int32_t incpos; /* position in the inconsistent set, or -1 */
-    uint8_t mask;
+    uint8_t mask;   /* 0: an empty slot */
     uint8_t queued; /* an entry of rule 3's queue refers to it */
 } as_ftab_entry;
 
 /* A facet of a star that is new or whose surface ball moved (the refiner's queue feed). */
 typedef struct as_fevent {
-    int32_t star;
-    int32_t g[3];
+    as_gid star;
+    as_gid g[3];
 } as_fevent;
 
 typedef struct as_starset {
@@ -50,6 +58,7 @@ typedef struct as_starset {
     as_star_env env;
 
     int32_t n, cap;          /* points (global ids) */
+    int32_t max_ids;         /* the id limit: AS_STARSET_MAX_IDS (tests lower it) */
     double *xyz;             /* 3 per id */
     as_metric_frame *mf;     /* per id (identity for corners and poles) */
     as_star **stars;         /* per id (NULL for corners and poles) */
@@ -59,7 +68,7 @@ typedef struct as_starset {
     /* facet table (open addressing, linear probing, backward-shift deletion) */
     as_ftab_entry *tab;
     size_t tab_cap, tab_n;
-    uint64_t *inc;           /* inconsistent facets (keys) */
+    as_fkey *inc;            /* inconsistent facets (keys) */
     size_t ninc, cap_inc;
 
     as_kdtree *kd;           /* poles and sites */
@@ -86,7 +95,7 @@ typedef struct as_starset {
     /* events since the refiner last drained them */
     as_fevent *ev;
     size_t nev, cap_ev;
-    uint64_t *newinc;        /* keys that became inconsistent */
+    as_fkey *newinc;         /* keys that became inconsistent */
     size_t nnewinc, cap_newinc;
     int32_t *open;           /* stars found not a closed fan (topology rule's feed) */
     size_t nopen, cap_open;
@@ -116,14 +125,19 @@ typedef struct as_starset {
     uint64_t star_updates, star_builds, conflict_tests, star_rebuilds, zone_regrowths;
 } as_starset;
 
-/* Pack / unpack a sorted triple. */
-static inline uint64_t as_facet_key(const int32_t g[3]) {
-    return ((uint64_t)g[0] << 42) | ((uint64_t)g[1] << 21) | (uint64_t)g[2];
+/* The key of a sorted triple. */
+static inline as_fkey as_facet_key(const as_gid g[3]) {
+    as_fkey k = {{g[0], g[1], g[2]}};
+    return k;
 }
-static inline void as_facet_unkey(uint64_t k, int32_t g[3]) {
-    g[0] = (int32_t)(k >> 42);
-    g[1] = (int32_t)((k >> 21) & 0x1FFFFF);
-    g[2] = (int32_t)(k & 0x1FFFFF);
+static inline int as_fkey_eq(const as_fkey *a, const as_fkey *b) {
+    return a->g[0] == b->g[0] && a->g[1] == b->g[1] && a->g[2] == b->g[2];
+}
+/* Lexicographic order: -1, 0, 1. */
+static inline int as_fkey_cmp(const as_fkey *a, const as_fkey *b) {
+    for (int k = 0; k < 3; k++)
+        if (a->g[k] != b->g[k]) return a->g[k] < b->g[k] ? -1 : 1;
+    return 0;
 }
 
 /*
@@ -187,9 +201,9 @@ anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lf
 anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf);
 
 /* The table entry of key, or NULL. */
-as_ftab_entry *as_starset_lookup(const as_starset *ss, uint64_t key);
+as_ftab_entry *as_starset_lookup(const as_starset *ss, as_fkey key);
 /* 1 if the entry is consistent (full mask, three surface sites). */
-int as_starset_consistent(const as_starset *ss, uint64_t key, uint8_t mask);
+int as_starset_consistent(const as_starset *ss, as_fkey key, uint8_t mask);
 
 /* Validator: rebuild the table from every star's restricted facets and compare with the
  * table and the inconsistent set. ANISTAR_OK or EINTERNAL with a message; ENOMEM. */

@@ -1520,6 +1520,15 @@ int as_del3_in_sphere(const as_del3 *d, int32_t t, const double p[3], int64_t gi
     return sphere_exact(d, tv, p, gid) > 0;
 }
 
+int as_del3_in_sphere_points(const double *const q[4], const int64_t g[4], const double p[3],
+                             int64_t gid) {
+    for (int i = 0; i < 4; i++)
+        if (same_point(q[i], p)) return 0;
+    int s = isp_filter(q[0], q[1], q[2], q[3], p);
+    if (!s) s = as_insphere_sos(q[0], q[1], q[2], q[3], p, g[0], g[1], g[2], g[3], gid);
+    return s > 0;
+}
+
 anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out) {
     out->n = 0;
     if (!d->dim3 || v < 0 || v >= d->nv)

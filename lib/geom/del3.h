@@ -281,6 +281,14 @@ int as_del3_conflict_zone(as_del3 *d, const double p[3], int64_t gid, int32_t hi
  * rule of del3.c. */
 int as_del3_in_sphere(const as_del3 *d, int32_t t, const double p[3], int64_t gid);
 
+/* as_del3_in_sphere for a finite tet given by its four stored points q (positively
+ * oriented, as in a tet record) and their global ids g, without the structure (a caller
+ * that keeps a triangulation in its own compact form: the mesher's idle stars). The same
+ * answer, bit for bit: 0 when p equals one of the q, else the filter then
+ * as_insphere_sos. */
+int as_del3_in_sphere_points(const double *const q[4], const int64_t g[4], const double p[3],
+                             int64_t gid);
+
 /* The tets incident to vertex v (finite and infinite), in *out (cleared first).
  * Iterative; ANISTAR_OK, ANISTAR_EINVAL (v out of range or the set not 3D) or
  * ANISTAR_ENOMEM. */

@@ -441,11 +441,10 @@ static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t
     double r2 = (C[0] - Y[0][0]) * (C[0] - Y[0][0]) + (C[1] - Y[0][1]) * (C[1] - Y[0][1]) +
                 (C[2] - Y[0][2]) * (C[2] - Y[0][2]);
     const as_star *st = ss->stars[w];
-    const as_del3 *d = &st->del;
-    for (int32_t q = 0; q < d->nv; q++) {
-        int64_t gq = d->gid[q];
+    for (int32_t q = 0; q < as_star_nv(st); q++) {
+        as_gid gq = as_star_vertex_gid(st, q);
         if (gq == f->g[0] || gq == f->g[1] || gq == f->g[2]) continue;
-        const double *Q = as_del3_point(d, q);
+        const double *Q = as_star_point(st, q);
         double d2 = (C[0] - Q[0]) * (C[0] - Q[0]) + (C[1] - Q[1]) * (C[1] - Q[1]) +
                     (C[2] - Q[2]) * (C[2] - Q[2]);
         if (d2 < r2) return ANISTAR_OK;

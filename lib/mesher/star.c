@@ -4,6 +4,8 @@
  */
 #include "mesher/star.h"
 
+#include "geom/predicates.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -14,31 +16,32 @@ enum { TF_UNKNOWN = 0, TF_OUT = 1, TF_IN = 2, TF_STATE = 3, TF_FRESH = 4 };
 #define AS_STAR_SLACK 1e-9
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
-    if (s->donor_init) as_del3_destroy(&s->donor);
+    if (s->work_init) as_del3_destroy(&s->work);
     as_del3_buf_free(ctx, &s->tets);
     as_del3_buf_free(ctx, &s->faces);
     as_free(ctx, s->old, (size_t)s->cap_old * sizeof *s->old);
+    as_free(ctx, s->rf, (size_t)s->cap_rf * sizeof *s->rf);
+    as_free(ctx, s->itet, (size_t)s->cap_itet * sizeof *s->itet);
+    as_free(ctx, s->zone, (size_t)s->cap_zone * sizeof *s->zone);
+    as_free(ctx, s->isph, (size_t)s->cap_isph * sizeof *s->isph);
+    as_free(ctx, s->tflag, s->cap_tflag);
     as_free(ctx, s->osph, (size_t)s->cap_osph * sizeof *s->osph);
     as_free(ctx, s->slot, (size_t)s->cap_slot * sizeof *s->slot);
     memset(s, 0, sizeof *s);
 }
 
 void as_star_init(as_star *st, anistar_context *ctx) {
+    (void)ctx;
     memset(st, 0, sizeof *st);
-    as_del3_init(&st->del, ctx);
-    st->del.no_sphere_cache = 1; /* design: isph filters its conflict tests (memory) */
-    st->del.tight_growth = 1;    /* design: many small triangulations (memory) */
     st->gid = -1;
     st->vloc = -1;
+    st->free_head = -1;
+    st->hint = -1;
 }
 
 void as_star_destroy(anistar_context *ctx, as_star *st) {
-    as_del3_destroy(&st->del);
-    as_free(ctx, st->tflag, st->cap_tflag);
-    as_free(ctx, st->rf, (size_t)st->cap_rf * sizeof *st->rf);
-    as_free(ctx, st->itet, (size_t)st->cap_itet * sizeof *st->itet);
-    as_free(ctx, st->zone, (size_t)st->cap_zone * sizeof *st->zone);
-    as_free(ctx, st->isph, (size_t)st->cap_isph * sizeof *st->isph);
+    /* everything a star owns is in its block (while open, its arrays are the scratch's) */
+    as_free(ctx, st->blk, st->blk_bytes);
     memset(st, 0, sizeof *st);
 }
 
@@ -91,38 +94,8 @@ double as_radius_edge(const as_metric_frame *mf, const double a[3], const double
     return m > 0 ? R / m : INFINITY;
 }
 
-/* Shrink array *p of capacity *cap (elements of size elem) to n >= 1 elements. 0 or -1. */
-static int trim_array(anistar_context *ctx, void **p, int32_t *cap, int32_t n, size_t elem) {
-    if (n < 1) n = 1;
-    if (n >= *cap) return 0;
-    void *q = as_realloc(ctx, *p, (size_t)*cap * elem, (size_t)n * elem);
-    if (!q) return -1;
-    *p = q;
-    *cap = n;
-    return 0;
-}
-
-anistar_status as_star_trim(anistar_context *ctx, as_star *st) {
-    if (as_del3_shrink(&st->del) != 0)
-        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    size_t need = st->del.nt > 0 ? (size_t)st->del.nt : 1;
-    if (need < st->cap_tflag) {
-        uint8_t *p = as_realloc(ctx, st->tflag, st->cap_tflag, need);
-        if (!p) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star flags)");
-        st->tflag = p;
-        st->cap_tflag = need;
-    }
-    if (trim_array(ctx, (void **)&st->rf, &st->cap_rf, st->nrf, sizeof *st->rf) ||
-        trim_array(ctx, (void **)&st->itet, &st->cap_itet, st->nitet, sizeof *st->itet) ||
-        trim_array(ctx, (void **)&st->isph, &st->cap_isph, 4 * st->nitet, sizeof *st->isph) ||
-        trim_array(ctx, (void **)&st->zone, &st->cap_zone, st->closed ? 4 * st->nrf : 0,
-                   sizeof *st->zone))
-        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    return ANISTAR_OK;
-}
-
 static anistar_status grow_tflag(anistar_context *ctx, as_star *st) {
-    size_t need = (size_t)st->del.nt;
+    size_t need = (size_t)st->d->nt;
     if (need <= st->cap_tflag) return ANISTAR_OK;
     size_t cap = st->cap_tflag ? st->cap_tflag : 32;
     while (cap < need) cap *= 2;
@@ -145,7 +118,7 @@ static int tet_center(const as_star *st, int32_t t, double cc[3]) {
             memcpy(cc, S, 3 * sizeof(double));
             return 0;
         }
-    return as_del3_circumcenter(&st->del, t, cc);
+    return as_del3_circumcenter(st->d, t, cc);
 }
 
 /* The inside state of live finite tet t (cached). */
@@ -335,12 +308,12 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     st->nrf = 0;
 
     /* the tets incident to v */
-    if ((s = as_del3_vertex_tets(&st->del, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
+    if ((s = as_del3_vertex_tets(st->d, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
     const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
     if ((s = grow_dbl(ctx, &sc->osph, &sc->cap_osph, 4 * nprev)) != ANISTAR_OK) return s;
-    if (st->del.nt > sc->cap_slot) {
+    if (st->d->nt > sc->cap_slot) {
         int32_t c0 = sc->cap_slot;
-        if ((s = grow_i32(ctx, &sc->slot, &sc->cap_slot, st->del.nt)) != ANISTAR_OK) return s;
+        if ((s = grow_i32(ctx, &sc->slot, &sc->cap_slot, st->d->nt)) != ANISTAR_OK) return s;
         for (int32_t t = c0; t < sc->cap_slot; t++) sc->slot[t] = -1;
     }
     if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
@@ -356,7 +329,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     for (int32_t i = 0; i < nprev; i++)
         if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = i;
     {
-        const as_del3 *d = &st->del;
+        const as_del3 *d = st->d;
         const double *V = as_del3_point(d, st->vloc);
         for (int32_t i = 0; i < nnew; i++) {
             int32_t t = sc->tets.a[i];
@@ -380,8 +353,8 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = -1;
     memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
     st->nitet = nnew;
-    if ((s = as_del3_vertex_facets(&st->del, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
-    const as_del3 *d = &st->del;
+    if ((s = as_del3_vertex_facets(st->d, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
+    const as_del3 *d = st->d;
     const double *vx = env->xyz + 3 * (size_t)st->gid;
     for (size_t k = 0; k < sc->faces.n; k++) {
         int32_t face = sc->faces.a[k];
@@ -487,20 +460,236 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
 }
 
 
-static void lend(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
-    if (!sc->donor_init) {
-        as_del3_init(&sc->donor, ctx);
-        sc->donor_init = 1;
-    }
-    as_del3_swap_scratch(&st->del, &sc->donor);
+/* ---- packing (see star.h) ---------------------------------------------------------- */
+
+/* Grow a scratch array to n elements (its contents need not survive). 0 or -1. */
+static int scratch_fit(anistar_context *ctx, void **p, size_t *cap, size_t n, size_t elem) {
+    return n > *cap ? as_grow(ctx, p, cap, n, elem) : 0;
 }
-static void unlend(as_star *st, as_star_scratch *sc) { as_del3_swap_scratch(&st->del, &sc->donor); }
+static int scratch_fit32(anistar_context *ctx, void **p, int32_t *cap, size_t n, size_t elem) {
+    size_t c = (size_t)*cap;
+    if (scratch_fit(ctx, p, &c, n, elem)) return -1;
+    *cap = (int32_t)c;
+    return 0;
+}
+
+/*
+ * Unpack star st into the owner's working triangulation sc->work and lend it the working
+ * arrays of sc (its facets, incident tets, spheres, zone and flags copied in): st->d is set.
+ * design: the work is reset, then given st's vertex and tet records exactly as del3 left
+ * them (slot numbers, free list, hints, random state: a packed star continues as if it had
+ * never been packed); the visit marks are 0 between operations. ANISTAR_OK or ENOMEM (st
+ * unchanged, still packed).
+ */
+static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
+    if (!sc->work_init) {
+        as_del3_init(&sc->work, ctx);
+        sc->work.no_sphere_cache = 1; /* design: isph filters the conflict tests (memory) */
+        sc->work_init = 1;
+    }
+    as_del3 *d = &sc->work;
+    const int32_t nv = st->nv, nt = st->nt;
+    const size_t nz = st->closed ? 4 * (size_t)st->nrf : 0;
+    if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
+        scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
+                      sizeof *sc->itet) ||
+        scratch_fit32(ctx, (void **)&sc->isph, &sc->cap_isph, 4 * (size_t)st->nitet,
+                      sizeof *sc->isph) ||
+        scratch_fit32(ctx, (void **)&sc->zone, &sc->cap_zone, nz, sizeof *sc->zone) ||
+        scratch_fit(ctx, (void **)&sc->tflag, &sc->cap_tflag, (size_t)nt, 1) ||
+        (nv && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    as_del3_reset(d);
+    if (st->nrf) memcpy(sc->rf, st->rf, (size_t)st->nrf * sizeof *sc->rf);
+    if (st->nitet) {
+        memcpy(sc->itet, st->itet, (size_t)st->nitet * sizeof *sc->itet);
+        memcpy(sc->isph, st->isph, 4 * (size_t)st->nitet * sizeof *sc->isph);
+    }
+    if (nz) memcpy(sc->zone, st->zone, nz * sizeof *sc->zone);
+    if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
+    if (nv) {
+        for (int32_t k = 0; k < nv; k++) {
+            as_del3_vertex *x = &d->vert[k];
+            memcpy(x->x, st->vx + 3 * (size_t)k, sizeof x->x);
+            x->tet = st->narrow ? (int32_t)((const uint16_t *)st->vtet)[k] - 1
+                                : ((const int32_t *)st->vtet)[k];
+            x->loc = -1;
+            d->gid[k] = st->vgid[k];
+        }
+        if (st->narrow) {
+            const uint16_t *h = st->trec;
+            const uint8_t *vb = (const uint8_t *)(h + 4 * (size_t)nt);
+            for (int32_t t = 0; t < nt; t++) {
+                int32_t *r = d->tet + 8 * (size_t)t;
+                const uint16_t *ht = h + 4 * (size_t)t;
+                const uint8_t *vt = vb + 4 * (size_t)t;
+                if (vt[0] == 0) { /* a free slot: its link */
+                    r[0] = AS_DEL3_DEAD;
+                    r[1] = (int32_t)ht[0] - 1;
+                    r[2] = r[3] = r[4] = r[5] = r[6] = r[7] = 0;
+                    continue;
+                }
+                for (int i = 0; i < 4; i++) {
+                    r[i] = (int32_t)vt[i] - 2;
+                    r[4 + i] = ht[i];
+                }
+            }
+        } else {
+            memcpy(d->tet, st->trec, 8 * (size_t)nt * sizeof *d->tet);
+        }
+        memset(d->mark, 0, (size_t)nt);
+        d->nv = nv;
+        d->nt = nt;
+        d->nlive = st->nlive;
+        d->free_head = st->free_head;
+        d->dim3 = nt > 0;
+        d->hint = st->hint;
+        d->rng = st->rng;
+    }
+    st->rf = sc->rf;
+    st->cap_rf = sc->cap_rf;
+    st->itet = sc->itet;
+    st->cap_itet = sc->cap_itet;
+    st->isph = sc->isph;
+    st->cap_isph = sc->cap_isph;
+    st->zone = sc->zone;
+    st->cap_zone = sc->cap_zone;
+    st->tflag = sc->tflag;
+    st->cap_tflag = sc->cap_tflag;
+    st->d = d;
+    return ANISTAR_OK;
+}
+
+static size_t up8(size_t n) { return (n + 7) & ~(size_t)7; }
+
+/*
+ * Pack star st (open: st->d) into a new block of the exact size, give the working arrays
+ * back to sc, free the old block. ANISTAR_OK; ENOMEM leaves the star empty (no vertices,
+ * no facets: the run ends with the error). st->d is NULL after either.
+ */
+static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
+    as_del3 *d = st->d;
+    /* the working arrays go back to the scratch (they may have grown) */
+    sc->rf = st->rf;
+    sc->cap_rf = st->cap_rf;
+    sc->itet = st->itet;
+    sc->cap_itet = st->cap_itet;
+    sc->isph = st->isph;
+    sc->cap_isph = st->cap_isph;
+    sc->zone = st->zone;
+    sc->cap_zone = st->cap_zone;
+    sc->tflag = st->tflag;
+    sc->cap_tflag = st->cap_tflag;
+    st->d = NULL;
+    const int32_t nv = d->nv, nt = d->nt;
+    const size_t nrf = (size_t)st->nrf, nit = (size_t)st->nitet;
+    const size_t nz = st->closed ? 4 * nrf : 0;
+    const int narrow = nv <= AS_STAR_NARROW_NV && nt <= AS_STAR_NARROW_NT;
+    /* design: one block, the 8-byte arrays first */
+    size_t o_vx = nrf * sizeof(as_rfacet), o_isph = o_vx + 3 * (size_t)nv * sizeof(double);
+    size_t o_zone = o_isph + 4 * nit * sizeof(double), o_gid = o_zone + nz * sizeof(double);
+    size_t o_itet = up8(o_gid + (size_t)nv * sizeof(as_gid));
+    size_t o_vtet = o_itet + nit * sizeof(int32_t);
+    size_t o_trec = up8(o_vtet + (size_t)nv * (narrow ? sizeof(uint16_t) : sizeof(int32_t)));
+    size_t o_tflag = o_trec + (size_t)nt * (narrow ? 12 : 8 * sizeof(int32_t));
+    size_t bytes = o_tflag + (size_t)nt;
+    char *blk = bytes ? as_alloc(ctx, bytes) : NULL;
+    if (bytes && !blk) {
+        as_free(ctx, st->blk, st->blk_bytes);
+        st->blk = NULL;
+        st->blk_bytes = 0;
+        st->nv = st->nt = st->nlive = st->nrf = st->nitet = 0;
+        st->cap_rf = st->cap_itet = st->cap_isph = st->cap_zone = 0;
+        st->cap_tflag = 0;
+        st->rf = NULL;
+        st->itet = NULL;
+        st->isph = st->zone = st->vx = NULL;
+        st->vgid = NULL;
+        st->vtet = st->trec = NULL;
+        st->tflag = NULL;
+        st->closed = 0;
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+    }
+    as_rfacet *rf = (as_rfacet *)(void *)blk;
+    double *vx = (double *)(void *)(blk + o_vx), *isph = (double *)(void *)(blk + o_isph);
+    double *zone = (double *)(void *)(blk + o_zone);
+    as_gid *vgid = (as_gid *)(void *)(blk + o_gid);
+    int32_t *itet = (int32_t *)(void *)(blk + o_itet);
+    void *vtet = blk + o_vtet, *trec = blk + o_trec;
+    uint8_t *tflag = (uint8_t *)(blk + o_tflag);
+    if (nrf) memcpy(rf, st->rf, nrf * sizeof *rf);
+    if (nit) {
+        memcpy(itet, st->itet, nit * sizeof *itet);
+        memcpy(isph, st->isph, 4 * nit * sizeof *isph);
+    }
+    if (nz) memcpy(zone, st->zone, nz * sizeof *zone);
+    if (nt) memcpy(tflag, st->tflag, (size_t)nt);
+    for (int32_t k = 0; k < nv; k++) {
+        memcpy(vx + 3 * (size_t)k, d->vert[k].x, 3 * sizeof *vx);
+        vgid[k] = (as_gid)d->gid[k];
+        if (narrow) ((uint16_t *)vtet)[k] = (uint16_t)(d->vert[k].tet + 1);
+        else ((int32_t *)vtet)[k] = d->vert[k].tet;
+    }
+    if (narrow) {
+        uint16_t *h = trec;
+        uint8_t *vb = (uint8_t *)(h + 4 * (size_t)nt);
+        for (int32_t t = 0; t < nt; t++) {
+            const int32_t *r = d->tet + 8 * (size_t)t;
+            uint16_t *ht = h + 4 * (size_t)t;
+            uint8_t *vt = vb + 4 * (size_t)t;
+            if (r[0] == AS_DEL3_DEAD) {
+                vt[0] = vt[1] = vt[2] = vt[3] = 0;
+                ht[0] = (uint16_t)(r[1] + 1);
+                ht[1] = ht[2] = ht[3] = 0;
+                continue;
+            }
+            for (int i = 0; i < 4; i++) {
+                vt[i] = (uint8_t)(r[i] + 2);
+                ht[i] = (uint16_t)r[4 + i];
+            }
+        }
+    } else if (nt) {
+        memcpy(trec, d->tet, 8 * (size_t)nt * sizeof *d->tet);
+    }
+    as_free(ctx, st->blk, st->blk_bytes);
+    st->blk = blk;
+    st->blk_bytes = bytes;
+    st->rf = rf;
+    st->cap_rf = (int32_t)nrf;
+    st->itet = itet;
+    st->cap_itet = (int32_t)nit;
+    st->isph = isph;
+    st->cap_isph = (int32_t)(4 * nit);
+    st->zone = zone;
+    st->cap_zone = (int32_t)nz;
+    st->tflag = tflag;
+    st->cap_tflag = (size_t)nt;
+    st->vx = vx;
+    st->vgid = vgid;
+    st->vtet = vtet;
+    st->trec = trec;
+    st->narrow = narrow;
+    st->nv = nv;
+    st->nt = nt;
+    st->nlive = d->nlive;
+    st->free_head = d->free_head;
+    st->hint = d->hint;
+    st->rng = d->rng;
+    return ANISTAR_OK;
+}
+
+/* Close st after an operation that returned s: the operation's error wins. */
+static anistar_status star_done(anistar_context *ctx, as_star *st, as_star_scratch *sc,
+                                anistar_status s) {
+    anistar_status c = star_close(ctx, st, sc);
+    return s != ANISTAR_OK ? s : c;
+}
 
 /* Insert one site into the del3 of the star; marks the created tets. */
 static anistar_status star_add(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                int32_t gid, int *inserted) {
     int32_t vtx = -1;
-    int r = as_del3_insert_frame(&st->del, mf, env->xyz + 3 * (size_t)gid, gid, &vtx);
+    int r = as_del3_insert_frame(st->d, mf, env->xyz + 3 * (size_t)gid, gid, &vtx);
     *inserted = 0;
     if (r == AS_DEL3_DUPLICATE) return ANISTAR_OK;
     if (r != ANISTAR_OK) {
@@ -510,14 +699,14 @@ static anistar_status star_add(const as_star_env *env, as_star *st, const as_met
     *inserted = 1;
     anistar_status s = grow_tflag(env->ctx, st);
     if (s != ANISTAR_OK) return s;
-    const as_del3_buf *cr = &st->del.created;
+    const as_del3_buf *cr = &st->d->created;
     for (size_t k = 0; k < cr->n; k++) st->tflag[cr->a[k]] = TF_FRESH;
     return ANISTAR_OK;
 }
 
 static anistar_status star_build(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                  int32_t gid) {
-    as_del3_reset(&st->del);
+    as_del3_reset(st->d);
     st->gid = gid;
     st->nrf = 0;
     st->closed = 0;
@@ -527,9 +716,9 @@ static anistar_status star_build(const as_star_env *env, as_star *st, const as_m
         if ((s = star_add(env, st, mf, k, &ins)) != ANISTAR_OK) return s;
     if ((s = star_add(env, st, mf, gid, &ins)) != ANISTAR_OK) return s;
     if (!ins) return as_fail(env->ctx, ANISTAR_EINTERNAL, "mesher: site equals a box corner");
-    st->vloc = st->del.nv - 1;
+    st->vloc = st->d->nv - 1;
     /* every slot is fresh after a rebuild */
-    for (int32_t t = 0; t < st->del.nt; t++) st->tflag[t] = TF_FRESH;
+    for (int32_t t = 0; t < st->d->nt; t++) st->tflag[t] = TF_FRESH;
     return ANISTAR_OK;
 }
 
@@ -563,9 +752,10 @@ anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metri
 anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
                                     const as_metric_frame *mf, int32_t gid,
                                     const int32_t *seeds, int32_t n, as_star_scratch *sc) {
-    lend(env->ctx, st, sc);
-    anistar_status s = star_build(env, st, mf, gid);
-    int32_t nv_base = st->del.nv;
+    anistar_status s = star_open(env->ctx, st, sc);
+    if (s != ANISTAR_OK) return s;
+    s = star_build(env, st, mf, gid);
+    int32_t nv_base = st->d->nv;
     for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
         int ins;
         s = star_add(env, st, mf, seeds[i], &ins);
@@ -574,7 +764,7 @@ anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
-    unlend(st, sc);
+    s = star_done(env->ctx, st, sc, s);
     st->nv_base = nv_base;
     return s;
 }
@@ -582,10 +772,10 @@ anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
 anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                               const int32_t *gids, int32_t n, as_star_scratch *sc,
                               int32_t *changed) {
-    lend(env->ctx, st, sc);
-    anistar_status s = star_insert(env, st, mf, gids, n, sc, changed);
-    unlend(st, sc);
-    return s;
+    anistar_status s = star_open(env->ctx, st, sc);
+    if (s != ANISTAR_OK) return s;
+    s = star_insert(env, st, mf, gids, n, sc, changed);
+    return star_done(env->ctx, st, sc, s);
 }
 
 anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_metric_frame *mf,
@@ -602,18 +792,9 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
     if (st->nrf) memcpy(sc->old, st->rf, (size_t)st->nrf * sizeof *st->rf);
     int32_t nold = st->nrf;
     int32_t gid = st->gid;
-    /* design: free the arrays (capacity shrinks to the new size), reserve tightly */
-    as_del3_destroy(&st->del);
-    as_del3_init(&st->del, ctx);
-    st->del.no_sphere_cache = 1;
-    st->del.tight_growth = 1;
-    as_free(ctx, st->tflag, st->cap_tflag);
-    st->tflag = NULL;
-    st->cap_tflag = 0;
-    int32_t nvw = 9 + n + 8;
-    if (as_del3_reserve(&st->del, nvw, 7 * nvw) != ANISTAR_OK)
-        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    lend(ctx, st, sc);
+    /* design: from scratch (star_build resets the working triangulation: slots, free list
+     * and random state as for a new star); the packed block shrinks to the new size */
+    if ((s = star_open(ctx, st, sc)) != ANISTAR_OK) return s;
     s = star_build(env, st, mf, gid);
     for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
         int ins;
@@ -623,23 +804,78 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
-    unlend(st, sc);
-    st->nv_base = st->del.nv;
+    s = star_done(ctx, st, sc, s);
+    st->nv_base = st->nv;
     /* star_update left sc->old's entries in place (it copied the empty list): they are
      * the facets from before the rebuild */
     sc->nold = nold;
     return s;
 }
 
+/* as_del3_in_sphere on tet t of a packed star (the stored points and ids of its vertices:
+ * the same predicate on the same numbers). */
+static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int64_t gid) {
+    int32_t v[4], h[4];
+    if (st->narrow) {
+        const uint16_t *ht = (const uint16_t *)st->trec + 4 * (size_t)t;
+        const uint8_t *vt = (const uint8_t *)((const uint16_t *)st->trec + 4 * (size_t)st->nt) +
+                            4 * (size_t)t;
+        if (vt[0] == 0) return 0; /* a free slot */
+        for (int i = 0; i < 4; i++) {
+            v[i] = (int32_t)vt[i] - 2;
+            h[i] = ht[i];
+        }
+    } else {
+        const int32_t *r = (const int32_t *)st->trec + 8 * (size_t)t;
+        if (r[0] == AS_DEL3_DEAD) return 0;
+        for (int i = 0; i < 4; i++) {
+            v[i] = r[i];
+            h[i] = r[4 + i];
+        }
+    }
+    const double *q[4];
+    int64_t g[4];
+    int k = -1;
+    for (int i = 0; i < 4; i++) {
+        if (v[i] < 0) {
+            k = i;
+            q[i] = y;
+            g[i] = -1;
+            continue;
+        }
+        q[i] = as_star_point(st, v[i]);
+        g[i] = as_star_vertex_gid(st, v[i]);
+        if (q[i][0] == y[0] && q[i][1] == y[1] && q[i][2] == y[2]) return 0;
+    }
+    if (k < 0) return as_del3_in_sphere_points(q, g, y, gid);
+    /* an infinite tet (del3.c's rule): y beyond its finite face, or on that face's plane
+     * and inside the sphere of the tet across it */
+    double o = as_orient3d(q[0], q[1], q[2], q[3]);
+    if (o != 0) return o > 0;
+    int32_t n = h[k] >> 3, w[4];
+    for (int i = 0; i < 4; i++)
+        w[i] = st->narrow ? (int32_t)((const uint8_t *)((const uint16_t *)st->trec +
+                                                        4 * (size_t)st->nt))[4 * (size_t)n + i] - 2
+                          : ((const int32_t *)st->trec)[8 * (size_t)n + i];
+    for (int i = 0; i < 4; i++) {
+        q[i] = as_star_point(st, w[i]);
+        g[i] = as_star_vertex_gid(st, w[i]);
+    }
+    double det = as_insphere_filter(q[0], q[1], q[2], q[3], y);
+    int sg = (det > 0) - (det < 0);
+    if (!sg) sg = as_insphere_sos(q[0], q[1], q[2], q[3], y, g[0], g[1], g[2], g[3], gid);
+    return sg > 0;
+}
+
 int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
                       int64_t gid, int32_t *hint) {
     double y[3];
     as_metric_apply(mf, p, y);
-    const as_del3 *d = &st->del;
+    const as_del3 *d = st->d; /* NULL: packed (the usual case) */
     if (st->closed) {
         /* design: a site outside every inflated surface ball leaves the surface star
          * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
-        const double *V = as_del3_point(d, st->vloc);
+        const double *V = d ? as_del3_point(d, st->vloc) : as_star_point(st, st->vloc);
         double dd[3];
         sub3(y, V, dd);
         if (!(dot3(dd, dd) < st->zr2)) return 0;
@@ -658,7 +894,8 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
             sub3(y, S, dd);
             if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
         }
-        if (as_del3_in_sphere(d, st->itet[i], y, gid)) {
+        if (d ? as_del3_in_sphere(d, st->itet[i], y, gid)
+              : packed_in_sphere(st, st->itet[i], y, gid)) {
             if (hint) *hint = st->itet[i];
             return 1;
         }

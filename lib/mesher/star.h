@@ -47,10 +47,39 @@ typedef struct as_star_env {
     const double *xyz; /* 3 per global id (corners, poles, sites) */
 } as_star_env;
 
+/*
+ * Memory (docs/algorithm.md, "Memory"): a star is idle nearly all the time, and an idle
+ * star is packed: one block holds its triangulation (the stretched points, their global
+ * ids, each vertex's incident tet, and per tet slot its four vertices in a byte each and
+ * its four neighbour handles in 16 bits, 12 bytes instead of 33, while the star has at
+ * most AS_STAR_NARROW_NV vertices and AS_STAR_NARROW_NT tet slots; 32 bits beyond), its
+ * tet flags, restricted facets, incident tets, their spheres and its zone, each at its
+ * exact size. A star is unpacked into its owner's working triangulation (sc->work) for
+ * the length of one operation (build, insert, rebuild) and packed again after it: the
+ * same arrays, slot for slot, so the results do not depend on the packing.
+ */
+#define AS_STAR_NARROW_NV 254
+#define AS_STAR_NARROW_NT 8192
+
 typedef struct as_star {
     as_gid gid;         /* the center v */
-    int32_t vloc;       /* v's vertex in del */
-    as_del3 del;
+    int32_t vloc;       /* v's vertex in the triangulation */
+    as_del3 *d;         /* during an operation: the owner's working triangulation holding
+                           this star (sc->work); NULL while packed */
+    /* the packed triangulation (while d is NULL): nv vertices, nt tet slots (nlive live,
+     * free list from free_head), the walk's hint and random state */
+    int32_t nv, nt, nlive, free_head, hint;
+    int narrow;         /* the 12-byte tet records (else 32 bytes, del3's own) */
+    uint64_t rng;
+    void *blk;          /* the one block of the packed star */
+    size_t blk_bytes;
+    double *vx;         /* 3 per vertex: the stored (stretched) points */
+    as_gid *vgid;       /* per vertex: its global id */
+    void *vtet;         /* per vertex: an incident tet (uint16_t + 1 narrow, int32_t wide) */
+    void *trec;         /* per tet slot: narrow, 4 uint16_t handles (tet[8t+4..7]) then,
+                           after all slots, 4 uint8_t vertices (tet[8t..3] + 2: DEAD 0,
+                           INF 1; a free slot's link is in its first handle, + 1); wide,
+                           del3's 8 int32_t */
     uint8_t *tflag;     /* per tet slot: bits 0-1 inside state (0 unknown, 1 out, 2 in),
                            bit 2 created by the last insertion */
     size_t cap_tflag;
@@ -58,7 +87,7 @@ typedef struct as_star {
     int32_t nrf, cap_rf;
     int closed;         /* the restricted facets form one closed fan around v */
     uint8_t topo_queued;/* the refiner's topology queue holds this star */
-    int32_t nv_base;    /* del.nv after the last (re)build: compaction trigger */
+    int32_t nv_base;    /* nv after the last (re)build: compaction trigger */
     int32_t *itet;      /* the live tets incident to v (after the last update) */
     int32_t nitet, cap_itet;
     double lo[3], hi[3];/* box of the conflict zone */
@@ -80,12 +109,23 @@ typedef struct as_star_scratch {
     as_del3_buf tets, faces;
     as_rfacet *old;
     int32_t nold, cap_old;
-    /* design: the del3 insertion scratch (stack, cavity faces, edge tables with the
-     * 16 KB direct table, created/removed lists, pending hash) is lent to the star being
-     * modified and taken back after, so a star holds only its vertices and tets (memory
-     * per star, DESIGN.md 4.3 "pool the memory of all stars"). */
-    as_del3 donor;
-    int donor_init;
+    /* design: the working triangulation: a star is unpacked into it for one operation and
+     * packed back after (see as_star), so its arrays and its insertion scratch (stack,
+     * cavity faces, edge tables with the 16 KB direct table, created/removed lists) exist
+     * once per owner, not once per star */
+    as_del3 work;
+    int work_init;
+    /* the working arrays of the star being modified (lent to it, see as_star) */
+    as_rfacet *rf;
+    int32_t cap_rf;
+    int32_t *itet;
+    int32_t cap_itet;
+    double *zone;
+    int32_t cap_zone;
+    double *isph;
+    int32_t cap_isph;
+    uint8_t *tflag;
+    size_t cap_tflag;
     /* star_update's reuse of circumspheres: the previous isph (osph) and, per tet slot,
      * its index there (slot; -1 between updates) */
     double *osph;
@@ -150,11 +190,6 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
  * factor, AND require the exact conflict with a tet incident to v (necessary for any
  * change of S_v); inserting a superset of the needed sites into T'_v is harmless.
  */
-/* Release the star's spare capacity (del3 arrays, tet flags): a star is kept for the
- * whole run, after a build most of its doubling growth is unused. ANISTAR_OK or ENOMEM
- * (the star unchanged). */
-anistar_status as_star_trim(anistar_context *ctx, as_star *st);
-
 #define AS_STAR_ZONE_INFLATE 1.5
 
 /*
@@ -162,10 +197,17 @@ anistar_status as_star_trim(anistar_context *ctx, as_star *st);
  * surface star (DESIGN.md 4.4): p is in conflict (exact insphere) with a tet incident to
  * v, and, if st is closed, p lies in some inflated surface ball
  * (|F_v(c - p)| < AS_STAR_ZONE_INFLATE r). 0 otherwise. *hint (optional) receives the
- * tet found in conflict: the start of the walk when p is then inserted (st->del.hint).
+ * tet found in conflict: the start of the walk when p is then inserted (st->hint).
  */
 int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
                       int64_t gid, int32_t *hint);
+
+/* The vertices of a packed star: their count, global ids and stored (stretched) points. */
+static inline int32_t as_star_nv(const as_star *st) { return st->nv; }
+static inline as_gid as_star_vertex_gid(const as_star *st, int32_t k) { return st->vgid[k]; }
+static inline const double *as_star_point(const as_star *st, int32_t k) {
+    return st->vx + 3 * (size_t)k;
+}
 
 /* The index of the restricted facet with sorted ids g in st->rf, or -1. */
 int32_t as_star_find(const as_star *st, const as_gid g[3]);

@@ -26,9 +26,8 @@ static void star_free(anistar_context *ctx, as_star *st) {
 
 /* 1 if site q is a vertex of star st's triangulation. */
 static int holds(const as_star *st, int32_t q) {
-    const as_del3 *d = &st->del;
-    for (int32_t i = 0; i < d->nv; i++)
-        if (d->gid[i] == q) return 1;
+    for (int32_t i = 0; i < as_star_nv(st); i++)
+        if (as_star_vertex_gid(st, i) == q) return 1;
     return 0;
 }
 
@@ -133,7 +132,7 @@ static anistar_status new_star(as_starset *ss, as_starmove *mv, int32_t w, const
         star_free(ctx, st);
         return s;
     }
-    st->nv_base = st->del.nv;
+    st->nv_base = st->nv;
     ss->star_rebuilds++;
     *out = st;
     return ANISTAR_OK;

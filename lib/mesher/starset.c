@@ -705,8 +705,8 @@ static uint32_t next_epoch(as_starset *ss) {
 static double open_radius(const as_starset *ss, const as_star *st, const as_metric_frame *mf) {
     const double *c = ss->xyz + 3 * (size_t)st->gid;
     double best = INFINITY;
-    for (int32_t k = 0; k < st->del.nv; k++) {
-        int64_t g = st->del.gid[k];
+    for (int32_t k = 0; k < as_star_nv(st); k++) {
+        as_gid g = as_star_vertex_gid(st, k);
         if (g < 8 || g == st->gid) continue;
         double dd = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)g);
         if (dd < best) best = dd;
@@ -869,7 +869,7 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
              * rule 1 inserts that ball's center on the site (seen on the skull at
              * r0 = 4 when a star was compacted). */
             ep = next_epoch(ss);
-            for (int32_t k = 0; k < st->del.nv; k++) ss->stamp[st->del.gid[k]] = ep;
+            for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
             nc = 0;
             query = 1;
             box = NULL;
@@ -981,9 +981,8 @@ static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) 
     int32_t nkeep = st->nrf;
     if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
     uint32_t ep = next_epoch(ss);
-    for (int32_t k = 0; k < st->del.nv; k++) ss->stamp[st->del.gid[k]] = ep;
+    for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
     if ((s = grow_star_box(ss, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
-    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
     ss->zone_regrowths++;
     for (int32_t k = 0; k < st->nrf; k++)
         st->rf[k].fresh = find_keep(ss->keep, nkeep, st->rf[k].g) < 0;
@@ -1015,8 +1014,7 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
         ANISTAR_OK)
         return s;
     if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
-    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
-    st->nv_base = st->del.nv;
+    st->nv_base = st->nv;
     ss->star_rebuilds++;
     /* the queue flags of facets that survived stay valid: copy them over; the others are
      * new since before the compaction (events) */
@@ -1049,7 +1047,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         as_star *sv = ss->stars[v];
         int32_t ch = 0;
         const int was_closed = sv->closed;
-        sv->del.hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+        sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
         if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, &ch)) != ANISTAR_OK)
             return s;
         ss->star_updates++;
@@ -1081,7 +1079,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
             memcpy(ss->regrow_box + 6 * ss->nregrow, zb, sizeof zb);
             ss->nregrow++;
         }
-        if (sv->closed && sv->del.nv > 24 && sv->del.nv > 2 * sv->nv_base) {
+        if (sv->closed && sv->nv > 24 && sv->nv > 2 * sv->nv_base) {
             if ((s = push_i32(ss->ctx, &ss->rebuild, &ss->cap_rebuild, ss->nrebuild, v)) !=
                 ANISTAR_OK)
                 return s;
@@ -1090,7 +1088,6 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     }
     /* 2. p's star */
     if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 0)) != ANISTAR_OK) return s;
-    if ((s = as_star_trim(ss->ctx, st)) != ANISTAR_OK) return s;
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;

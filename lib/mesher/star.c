@@ -11,9 +11,6 @@
 
 enum { TF_UNKNOWN = 0, TF_OUT = 1, TF_IN = 2, TF_STATE = 3, TF_FRESH = 4 };
 
-/* Relative slack of the floating-point filters in front of exact tests (boxes, surface
- * ball distances): a filter may only let more candidates through, never fewer. */
-#define AS_STAR_SLACK 1e-9
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     if (s->work_init) as_del3_destroy(&s->work);
@@ -22,7 +19,6 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_free(ctx, s->old, (size_t)s->cap_old * sizeof *s->old);
     as_free(ctx, s->rf, (size_t)s->cap_rf * sizeof *s->rf);
     as_free(ctx, s->itet, (size_t)s->cap_itet * sizeof *s->itet);
-    as_free(ctx, s->zone, (size_t)s->cap_zone * sizeof *s->zone);
     as_free(ctx, s->isph, (size_t)s->cap_isph * sizeof *s->isph);
     as_free(ctx, s->tflag, s->cap_tflag);
     as_free(ctx, s->osph, (size_t)s->cap_osph * sizeof *s->osph);
@@ -418,13 +414,11 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     if (st->closed) {
         /* design: the surface balls in the stretched frame, and one ball around F_v v
          * holding them all, so that most candidates are rejected by one distance */
-        if ((s = grow_dbl(ctx, &st->zone, &st->cap_zone, 4 * st->nrf)) != ANISTAR_OK) return s;
         const double *V = as_del3_point(d, st->vloc);
         double zr = 0;
         for (int32_t i = 0; i < st->nrf; i++) {
-            double *z = st->zone + 4 * (size_t)i, dd[3];
-            as_metric_apply(mf, st->rf[i].c, z);
-            z[3] = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            double z[4], dd[3];
+            as_star_zone_ball(mf, &st->rf[i], z);
             sub3(z, V, dd);
             double e = sqrt(dot3(dd, dd)) + z[3];
             if (e > zr) zr = e;
@@ -473,9 +467,99 @@ static int scratch_fit32(anistar_context *ctx, void **p, int32_t *cap, size_t n,
     return 0;
 }
 
+/* The packed record formats of a star's tets (see star.h): their sizes in bytes. */
+enum { FMT_WIDE = 0, FMT_NARROW = 1, FMT_TINY = 2 };
+static const size_t fmt_tet_bytes[3] = {8 * sizeof(int32_t), 12, 8};
+static const size_t fmt_vtet_bytes[3] = {sizeof(int32_t), sizeof(uint16_t), sizeof(uint8_t)};
+
+/* The format for nv vertices and nt tet slots: the smallest whose fields hold every value
+ * (vertices -2 .. nv-1, handles 8t+j < 8 nt, free links and incident tets -1 .. nt-1). */
+static int star_fmt(int32_t nv, int32_t nt) {
+    if (nv <= AS_STAR_TINY_NV && nt <= AS_STAR_TINY_NT) return FMT_TINY;
+    if (nv <= AS_STAR_NARROW_NV && nt <= AS_STAR_NARROW_NT) return FMT_NARROW;
+    return FMT_WIDE;
+}
+
+/* Tet slot t of packed star st as del3's record r[8] (a free slot: r[0] DEAD, r[1] its
+ * link, the rest 0). */
+static inline void tet_get(const as_star *st, int32_t t, int32_t r[8]) {
+    if (st->fmt == FMT_TINY) {
+        uint64_t w = ((const uint64_t *)st->trec)[t];
+        if ((w & 63) == 0) {
+            r[0] = AS_DEL3_DEAD;
+            r[1] = (int32_t)((w >> 24) & 1023) - 1;
+            r[2] = r[3] = r[4] = r[5] = r[6] = r[7] = 0;
+            return;
+        }
+        for (int i = 0; i < 4; i++) {
+            r[i] = (int32_t)((w >> (6 * i)) & 63) - 2;
+            uint32_t h = (uint32_t)(w >> (24 + 10 * i)) & 1023;
+            r[4 + i] = (int32_t)(((h >> 2) << 3) | (h & 3));
+        }
+    } else if (st->fmt == FMT_NARROW) {
+        const uint16_t *ht = (const uint16_t *)st->trec + 4 * (size_t)t;
+        const uint8_t *vt = (const uint8_t *)((const uint16_t *)st->trec + 4 * (size_t)st->nt) +
+                            4 * (size_t)t;
+        if (vt[0] == 0) {
+            r[0] = AS_DEL3_DEAD;
+            r[1] = (int32_t)ht[0] - 1;
+            r[2] = r[3] = r[4] = r[5] = r[6] = r[7] = 0;
+            return;
+        }
+        for (int i = 0; i < 4; i++) {
+            r[i] = (int32_t)vt[i] - 2;
+            r[4 + i] = ht[i];
+        }
+    } else {
+        memcpy(r, (const int32_t *)st->trec + 8 * (size_t)t, 8 * sizeof *r);
+    }
+}
+
+/* Store del3's record r[8] as slot t of the packed arrays trec (format fmt, nt slots). */
+static inline void tet_put(void *trec, int fmt, int32_t nt, int32_t t, const int32_t r[8]) {
+    int dead = r[0] == AS_DEL3_DEAD;
+    if (fmt == FMT_TINY) {
+        uint64_t w = 0;
+        if (dead) {
+            w = (uint64_t)(uint32_t)(r[1] + 1) << 24;
+        } else {
+            for (int i = 0; i < 4; i++) {
+                uint32_t h = ((uint32_t)r[4 + i] >> 3 << 2) | ((uint32_t)r[4 + i] & 3);
+                w |= (uint64_t)(uint32_t)(r[i] + 2) << (6 * i);
+                w |= (uint64_t)h << (24 + 10 * i);
+            }
+        }
+        ((uint64_t *)trec)[t] = w;
+    } else if (fmt == FMT_NARROW) {
+        uint16_t *ht = (uint16_t *)trec + 4 * (size_t)t;
+        uint8_t *vt = (uint8_t *)((uint16_t *)trec + 4 * (size_t)nt) + 4 * (size_t)t;
+        if (dead) {
+            vt[0] = vt[1] = vt[2] = vt[3] = 0;
+            ht[0] = (uint16_t)(r[1] + 1);
+            ht[1] = ht[2] = ht[3] = 0;
+            return;
+        }
+        for (int i = 0; i < 4; i++) {
+            vt[i] = (uint8_t)(r[i] + 2);
+            ht[i] = (uint16_t)r[4 + i];
+        }
+    } else {
+        memcpy((int32_t *)trec + 8 * (size_t)t, r, 8 * sizeof *r);
+    }
+}
+
+/* The incident tet of vertex k of packed star st. */
+static inline int32_t vtet_get(const as_star *st, int32_t k) {
+    switch (st->fmt) {
+    case FMT_TINY: return (int32_t)((const uint8_t *)st->vtet)[k] - 1;
+    case FMT_NARROW: return (int32_t)((const uint16_t *)st->vtet)[k] - 1;
+    default: return ((const int32_t *)st->vtet)[k];
+    }
+}
+
 /*
  * Unpack star st into the owner's working triangulation sc->work and lend it the working
- * arrays of sc (its facets, incident tets, spheres, zone and flags copied in): st->d is set.
+ * arrays of sc (its facets, incident tets, spheres and flags copied in): st->d is set.
  * design: the work is reset, then given st's vertex and tet records exactly as del3 left
  * them (slot numbers, free list, hints, random state: a packed star continues as if it had
  * never been packed); the visit marks are 0 between operations. ANISTAR_OK or ENOMEM (st
@@ -489,13 +573,11 @@ static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scrat
     }
     as_del3 *d = &sc->work;
     const int32_t nv = st->nv, nt = st->nt;
-    const size_t nz = st->closed ? 4 * (size_t)st->nrf : 0;
     if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
         scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
                       sizeof *sc->itet) ||
         scratch_fit32(ctx, (void **)&sc->isph, &sc->cap_isph, 4 * (size_t)st->nitet,
                       sizeof *sc->isph) ||
-        scratch_fit32(ctx, (void **)&sc->zone, &sc->cap_zone, nz, sizeof *sc->zone) ||
         scratch_fit(ctx, (void **)&sc->tflag, &sc->cap_tflag, (size_t)nt, 1) ||
         (nv && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
@@ -505,38 +587,16 @@ static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scrat
         memcpy(sc->itet, st->itet, (size_t)st->nitet * sizeof *sc->itet);
         memcpy(sc->isph, st->isph, 4 * (size_t)st->nitet * sizeof *sc->isph);
     }
-    if (nz) memcpy(sc->zone, st->zone, nz * sizeof *sc->zone);
     if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
     if (nv) {
         for (int32_t k = 0; k < nv; k++) {
             as_del3_vertex *x = &d->vert[k];
             memcpy(x->x, st->vx + 3 * (size_t)k, sizeof x->x);
-            x->tet = st->narrow ? (int32_t)((const uint16_t *)st->vtet)[k] - 1
-                                : ((const int32_t *)st->vtet)[k];
+            x->tet = vtet_get(st, k);
             x->loc = -1;
             d->gid[k] = st->vgid[k];
         }
-        if (st->narrow) {
-            const uint16_t *h = st->trec;
-            const uint8_t *vb = (const uint8_t *)(h + 4 * (size_t)nt);
-            for (int32_t t = 0; t < nt; t++) {
-                int32_t *r = d->tet + 8 * (size_t)t;
-                const uint16_t *ht = h + 4 * (size_t)t;
-                const uint8_t *vt = vb + 4 * (size_t)t;
-                if (vt[0] == 0) { /* a free slot: its link */
-                    r[0] = AS_DEL3_DEAD;
-                    r[1] = (int32_t)ht[0] - 1;
-                    r[2] = r[3] = r[4] = r[5] = r[6] = r[7] = 0;
-                    continue;
-                }
-                for (int i = 0; i < 4; i++) {
-                    r[i] = (int32_t)vt[i] - 2;
-                    r[4 + i] = ht[i];
-                }
-            }
-        } else {
-            memcpy(d->tet, st->trec, 8 * (size_t)nt * sizeof *d->tet);
-        }
+        for (int32_t t = 0; t < nt; t++) tet_get(st, t, d->tet + 8 * (size_t)t);
         memset(d->mark, 0, (size_t)nt);
         d->nv = nv;
         d->nt = nt;
@@ -552,8 +612,6 @@ static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scrat
     st->cap_itet = sc->cap_itet;
     st->isph = sc->isph;
     st->cap_isph = sc->cap_isph;
-    st->zone = sc->zone;
-    st->cap_zone = sc->cap_zone;
     st->tflag = sc->tflag;
     st->cap_tflag = sc->cap_tflag;
     st->d = d;
@@ -576,22 +634,19 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     sc->cap_itet = st->cap_itet;
     sc->isph = st->isph;
     sc->cap_isph = st->cap_isph;
-    sc->zone = st->zone;
-    sc->cap_zone = st->cap_zone;
     sc->tflag = st->tflag;
     sc->cap_tflag = st->cap_tflag;
     st->d = NULL;
     const int32_t nv = d->nv, nt = d->nt;
     const size_t nrf = (size_t)st->nrf, nit = (size_t)st->nitet;
-    const size_t nz = st->closed ? 4 * nrf : 0;
-    const int narrow = nv <= AS_STAR_NARROW_NV && nt <= AS_STAR_NARROW_NT;
+    const int fmt = star_fmt(nv, nt);
     /* design: one block, the 8-byte arrays first */
     size_t o_vx = nrf * sizeof(as_rfacet), o_isph = o_vx + 3 * (size_t)nv * sizeof(double);
-    size_t o_zone = o_isph + 4 * nit * sizeof(double), o_gid = o_zone + nz * sizeof(double);
+    size_t o_gid = o_isph + 4 * nit * sizeof(double);
     size_t o_itet = up8(o_gid + (size_t)nv * sizeof(as_gid));
     size_t o_vtet = o_itet + nit * sizeof(int32_t);
-    size_t o_trec = up8(o_vtet + (size_t)nv * (narrow ? sizeof(uint16_t) : sizeof(int32_t)));
-    size_t o_tflag = o_trec + (size_t)nt * (narrow ? 12 : 8 * sizeof(int32_t));
+    size_t o_trec = up8(o_vtet + (size_t)nv * fmt_vtet_bytes[fmt]);
+    size_t o_tflag = o_trec + (size_t)nt * fmt_tet_bytes[fmt];
     size_t bytes = o_tflag + (size_t)nt;
     char *blk = bytes ? as_alloc(ctx, bytes) : NULL;
     if (bytes && !blk) {
@@ -599,11 +654,11 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
         st->blk = NULL;
         st->blk_bytes = 0;
         st->nv = st->nt = st->nlive = st->nrf = st->nitet = 0;
-        st->cap_rf = st->cap_itet = st->cap_isph = st->cap_zone = 0;
+        st->cap_rf = st->cap_itet = st->cap_isph = 0;
         st->cap_tflag = 0;
         st->rf = NULL;
         st->itet = NULL;
-        st->isph = st->zone = st->vx = NULL;
+        st->isph = st->vx = NULL;
         st->vgid = NULL;
         st->vtet = st->trec = NULL;
         st->tflag = NULL;
@@ -612,7 +667,6 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     }
     as_rfacet *rf = (as_rfacet *)(void *)blk;
     double *vx = (double *)(void *)(blk + o_vx), *isph = (double *)(void *)(blk + o_isph);
-    double *zone = (double *)(void *)(blk + o_zone);
     as_gid *vgid = (as_gid *)(void *)(blk + o_gid);
     int32_t *itet = (int32_t *)(void *)(blk + o_itet);
     void *vtet = blk + o_vtet, *trec = blk + o_trec;
@@ -622,35 +676,16 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
         memcpy(itet, st->itet, nit * sizeof *itet);
         memcpy(isph, st->isph, 4 * nit * sizeof *isph);
     }
-    if (nz) memcpy(zone, st->zone, nz * sizeof *zone);
     if (nt) memcpy(tflag, st->tflag, (size_t)nt);
     for (int32_t k = 0; k < nv; k++) {
         memcpy(vx + 3 * (size_t)k, d->vert[k].x, 3 * sizeof *vx);
         vgid[k] = (as_gid)d->gid[k];
-        if (narrow) ((uint16_t *)vtet)[k] = (uint16_t)(d->vert[k].tet + 1);
-        else ((int32_t *)vtet)[k] = d->vert[k].tet;
+        int32_t vt = d->vert[k].tet;
+        if (fmt == FMT_TINY) ((uint8_t *)vtet)[k] = (uint8_t)(vt + 1);
+        else if (fmt == FMT_NARROW) ((uint16_t *)vtet)[k] = (uint16_t)(vt + 1);
+        else ((int32_t *)vtet)[k] = vt;
     }
-    if (narrow) {
-        uint16_t *h = trec;
-        uint8_t *vb = (uint8_t *)(h + 4 * (size_t)nt);
-        for (int32_t t = 0; t < nt; t++) {
-            const int32_t *r = d->tet + 8 * (size_t)t;
-            uint16_t *ht = h + 4 * (size_t)t;
-            uint8_t *vt = vb + 4 * (size_t)t;
-            if (r[0] == AS_DEL3_DEAD) {
-                vt[0] = vt[1] = vt[2] = vt[3] = 0;
-                ht[0] = (uint16_t)(r[1] + 1);
-                ht[1] = ht[2] = ht[3] = 0;
-                continue;
-            }
-            for (int i = 0; i < 4; i++) {
-                vt[i] = (uint8_t)(r[i] + 2);
-                ht[i] = (uint16_t)r[4 + i];
-            }
-        }
-    } else if (nt) {
-        memcpy(trec, d->tet, 8 * (size_t)nt * sizeof *d->tet);
-    }
+    for (int32_t t = 0; t < nt; t++) tet_put(trec, fmt, nt, t, d->tet + 8 * (size_t)t);
     as_free(ctx, st->blk, st->blk_bytes);
     st->blk = blk;
     st->blk_bytes = bytes;
@@ -660,15 +695,13 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     st->cap_itet = (int32_t)nit;
     st->isph = isph;
     st->cap_isph = (int32_t)(4 * nit);
-    st->zone = zone;
-    st->cap_zone = (int32_t)nz;
     st->tflag = tflag;
     st->cap_tflag = (size_t)nt;
     st->vx = vx;
     st->vgid = vgid;
     st->vtet = vtet;
     st->trec = trec;
-    st->narrow = narrow;
+    st->fmt = fmt;
     st->nv = nv;
     st->nt = nt;
     st->nlive = d->nlive;
@@ -815,48 +848,30 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
 /* as_del3_in_sphere on tet t of a packed star (the stored points and ids of its vertices:
  * the same predicate on the same numbers). */
 static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int64_t gid) {
-    int32_t v[4], h[4];
-    if (st->narrow) {
-        const uint16_t *ht = (const uint16_t *)st->trec + 4 * (size_t)t;
-        const uint8_t *vt = (const uint8_t *)((const uint16_t *)st->trec + 4 * (size_t)st->nt) +
-                            4 * (size_t)t;
-        if (vt[0] == 0) return 0; /* a free slot */
-        for (int i = 0; i < 4; i++) {
-            v[i] = (int32_t)vt[i] - 2;
-            h[i] = ht[i];
-        }
-    } else {
-        const int32_t *r = (const int32_t *)st->trec + 8 * (size_t)t;
-        if (r[0] == AS_DEL3_DEAD) return 0;
-        for (int i = 0; i < 4; i++) {
-            v[i] = r[i];
-            h[i] = r[4 + i];
-        }
-    }
+    int32_t r[8];
+    tet_get(st, t, r);
+    if (r[0] == AS_DEL3_DEAD) return 0;
     const double *q[4];
     int64_t g[4];
     int k = -1;
     for (int i = 0; i < 4; i++) {
-        if (v[i] < 0) {
+        if (r[i] < 0) {
             k = i;
             q[i] = y;
             g[i] = -1;
             continue;
         }
-        q[i] = as_star_point(st, v[i]);
-        g[i] = as_star_vertex_gid(st, v[i]);
+        q[i] = as_star_point(st, r[i]);
+        g[i] = as_star_vertex_gid(st, r[i]);
         if (q[i][0] == y[0] && q[i][1] == y[1] && q[i][2] == y[2]) return 0;
     }
     if (k < 0) return as_del3_in_sphere_points(q, g, y, gid);
     /* an infinite tet (del3.c's rule): y beyond its finite face, or on that face's plane
-     * and inside the sphere of the tet across it */
+     * and inside the sphere of the finite tet across it */
     double o = as_orient3d(q[0], q[1], q[2], q[3]);
     if (o != 0) return o > 0;
-    int32_t n = h[k] >> 3, w[4];
-    for (int i = 0; i < 4; i++)
-        w[i] = st->narrow ? (int32_t)((const uint8_t *)((const uint16_t *)st->trec +
-                                                        4 * (size_t)st->nt))[4 * (size_t)n + i] - 2
-                          : ((const int32_t *)st->trec)[8 * (size_t)n + i];
+    int32_t w[8];
+    tet_get(st, r[4 + k] >> 3, w);
     for (int i = 0; i < 4; i++) {
         q[i] = as_star_point(st, w[i]);
         g[i] = as_star_vertex_gid(st, w[i]);
@@ -881,7 +896,8 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         if (!(dot3(dd, dd) < st->zr2)) return 0;
         int near = 0;
         for (int32_t i = 0; i < st->nrf && !near; i++) {
-            const double *z = st->zone + 4 * (size_t)i;
+            double z[4];
+            as_star_zone_ball(mf, &st->rf[i], z);
             sub3(y, z, dd);
             near = dot3(dd, dd) < z[3] * z[3];
         }

@@ -53,13 +53,17 @@ typedef struct as_star_env {
  * ids, each vertex's incident tet, and per tet slot its four vertices in a byte each and
  * its four neighbour handles in 16 bits, 12 bytes instead of 33, while the star has at
  * most AS_STAR_NARROW_NV vertices and AS_STAR_NARROW_NT tet slots; 32 bits beyond), its
- * tet flags, restricted facets, incident tets, their spheres and its zone, each at its
- * exact size. A star is unpacked into its owner's working triangulation (sc->work) for
+ * tet flags, restricted facets, incident tets and their spheres, each at its
+ * exact size; the smallest stars (at most AS_STAR_TINY_NV vertices and AS_STAR_TINY_NT
+ * slots, nearly all) take 8 bytes per slot: 6 bits per vertex, 10 per handle. A star is
+ * unpacked into its owner's working triangulation (sc->work) for
  * the length of one operation (build, insert, rebuild) and packed again after it: the
  * same arrays, slot for slot, so the results do not depend on the packing.
  */
 #define AS_STAR_NARROW_NV 254
 #define AS_STAR_NARROW_NT 8192
+#define AS_STAR_TINY_NV 62
+#define AS_STAR_TINY_NT 255
 
 typedef struct as_star {
     as_gid gid;         /* the center v */
@@ -69,17 +73,18 @@ typedef struct as_star {
     /* the packed triangulation (while d is NULL): nv vertices, nt tet slots (nlive live,
      * free list from free_head), the walk's hint and random state */
     int32_t nv, nt, nlive, free_head, hint;
-    int narrow;         /* the 12-byte tet records (else 32 bytes, del3's own) */
+    int fmt;            /* the record format (star.c): 8, 12 or 32 bytes per tet slot */
     uint64_t rng;
     void *blk;          /* the one block of the packed star */
     size_t blk_bytes;
     double *vx;         /* 3 per vertex: the stored (stretched) points */
     as_gid *vgid;       /* per vertex: its global id */
-    void *vtet;         /* per vertex: an incident tet (uint16_t + 1 narrow, int32_t wide) */
-    void *trec;         /* per tet slot: narrow, 4 uint16_t handles (tet[8t+4..7]) then,
-                           after all slots, 4 uint8_t vertices (tet[8t..3] + 2: DEAD 0,
-                           INF 1; a free slot's link is in its first handle, + 1); wide,
-                           del3's 8 int32_t */
+    void *vtet;         /* per vertex: an incident tet (+ 1 in 8 or 16 bits; or int32_t) */
+    void *trec;         /* per tet slot: tiny, one uint64_t (vertex i + 2 in bits 6i..6i+5,
+                           handle 8t'+j as 4t'+j in bits 24+10i..); narrow, 4 uint16_t
+                           handles (tet[8t+4..7]) then, after all slots, 4 uint8_t vertices
+                           (tet[8t..3] + 2); wide, del3's 8 int32_t. Vertex code 0 (DEAD)
+                           marks a free slot, whose link + 1 is its first handle */
     uint8_t *tflag;     /* per tet slot: bits 0-1 inside state (0 unknown, 1 out, 2 in),
                            bit 2 created by the last insertion */
     size_t cap_tflag;
@@ -91,11 +96,8 @@ typedef struct as_star {
     int32_t *itet;      /* the live tets incident to v (after the last update) */
     int32_t nitet, cap_itet;
     double lo[3], hi[3];/* box of the conflict zone */
-    /* closed stars: the inflated zone in the stretched frame, for the conflict filter:
-     * zone[4i..4i+2] = F_v c of facet i, zone[4i+3] = its inflated radius; the whole zone
-     * lies in the ball of center F_v v and squared radius zr2 */
-    double *zone;
-    int32_t cap_zone;
+    /* closed stars: the inflated zone in the stretched frame (as_star_zone_ball of each
+     * facet) lies in the ball of center F_v v and squared radius zr2 */
     double zr2;
     /* per itet[i]: isph[4i..4i+2] its circumcenter (stretched frame), isph[4i+3] a bound
      * on its squared circumradius (-1 for an infinite tet): a proven filter in front of
@@ -120,8 +122,6 @@ typedef struct as_star_scratch {
     int32_t cap_rf;
     int32_t *itet;
     int32_t cap_itet;
-    double *zone;
-    int32_t cap_zone;
     double *isph;
     int32_t cap_isph;
     uint8_t *tflag;
@@ -191,6 +191,18 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
  * change of S_v); inserting a superset of the needed sites into T'_v is harmless.
  */
 #define AS_STAR_ZONE_INFLATE 1.5
+
+/* Relative slack of the floating-point filters in front of exact tests (boxes, surface
+ * ball distances): a filter may only let more candidates through, never fewer. */
+#define AS_STAR_SLACK 1e-9
+
+/* The inflated surface ball of facet f of a closed star with frame mf, in the stretched
+ * frame: center z[0..2] = F_v c, radius z[3] (the conflict filter's; computed when needed,
+ * not stored: 32 bytes per facet, the same numbers every time). */
+static inline void as_star_zone_ball(const as_metric_frame *mf, const as_rfacet *f, double z[4]) {
+    as_metric_apply(mf, f->c, z);
+    z[3] = f->r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+}
 
 /*
  * 1 if inserting the point p (global id gid, not in the star) may change star st's

@@ -937,7 +937,8 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
             const as_gid *g = sv->rf[i].g;
             if (!simulate && g[0] != gid && g[1] != gid && g[2] != gid) continue;
             if (by_zone) {
-                const double *z = sv->zone + 4 * (size_t)i;
+                double z[4];
+                as_star_zone_ball(&ss->mf[v], &sv->rf[i], z);
                 double dx = y[0] - z[0], dy = y[1] - z[1], dz = y[2] - z[2];
                 if (dx * dx + dy * dy + dz * dz > z[3] * z[3]) continue;
             }

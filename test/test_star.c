@@ -123,7 +123,7 @@ static void test_restricted_vs_brute_force(void **state) {
         }
         as_metric_frame mf;
         random_frame(&r, trial < 8 ? 1.0 + 1e-9 : 4.0, &mf);
-        as_star_env env = {ctx, s, xyz};
+        as_star_env env = {ctx, s, xyz, 0};
         as_star_scratch sc;
         memset(&sc, 0, sizeof sc);
         as_star st;

@@ -444,7 +444,8 @@ static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t
     for (int32_t q = 0; q < as_star_nv(st); q++) {
         as_gid gq = as_star_vertex_gid(st, q);
         if (gq == f->g[0] || gq == f->g[1] || gq == f->g[2]) continue;
-        const double *Q = as_star_point(st, q);
+        double Q[3];
+        as_star_point(st, ss->xyz, mf, q, Q);
         double d2 = (C[0] - Q[0]) * (C[0] - Q[0]) + (C[1] - Q[1]) * (C[1] - Q[1]) +
                     (C[2] - Q[2]) * (C[2] - Q[2]);
         if (d2 < r2) return ANISTAR_OK;
@@ -621,7 +622,7 @@ static anistar_status topology_point(refiner *R, int32_t v, double out[3], doubl
             if (s != ANISTAR_OK) return s;
             double d = as_metric_dist(mf, q, x);
             if (!(d > 1e-6 * rad) || d <= *dist) continue;
-            if (!as_star_conflicts(st, mf, q, ss->n, NULL)) continue;
+            if (!as_star_conflicts(st, mf, ss->xyz, q, ss->n, NULL)) continue;
             /* a projection can land on an existing site (on a triangle mesh it snaps to
              * the corner or crease nearest the probe, where earlier points landed too):
              * a point within rounding of a site is no new point (its conflict is that of

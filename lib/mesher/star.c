@@ -560,19 +560,22 @@ static inline int32_t vtet_get(const as_star *st, int32_t k) {
 /*
  * Unpack star st into the owner's working triangulation sc->work and lend it the working
  * arrays of sc (its facets, incident tets, spheres and flags copied in): st->d is set.
+ * unpack 0: the triangulation is left empty (the caller builds it anew).
  * design: the work is reset, then given st's vertex and tet records exactly as del3 left
  * them (slot numbers, free list, hints, random state: a packed star continues as if it had
  * never been packed); the visit marks are 0 between operations. ANISTAR_OK or ENOMEM (st
  * unchanged, still packed).
  */
-static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
+static anistar_status star_open(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                                as_star_scratch *sc, int unpack) {
+    anistar_context *ctx = env->ctx;
     if (!sc->work_init) {
         as_del3_init(&sc->work, ctx);
         sc->work.no_sphere_cache = 1; /* design: isph filters the conflict tests (memory) */
         sc->work_init = 1;
     }
     as_del3 *d = &sc->work;
-    const int32_t nv = st->nv, nt = st->nt;
+    const int32_t nv = unpack ? st->nv : 0, nt = unpack ? st->nt : 0;
     if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
         scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
                       sizeof *sc->itet) ||
@@ -591,7 +594,7 @@ static anistar_status star_open(anistar_context *ctx, as_star *st, as_star_scrat
     if (nv) {
         for (int32_t k = 0; k < nv; k++) {
             as_del3_vertex *x = &d->vert[k];
-            memcpy(x->x, st->vx + 3 * (size_t)k, sizeof x->x);
+            as_star_point(st, env->xyz, mf, k, x->x);
             x->tet = vtet_get(st, k);
             x->loc = -1;
             d->gid[k] = st->vgid[k];
@@ -625,7 +628,8 @@ static size_t up8(size_t n) { return (n + 7) & ~(size_t)7; }
  * back to sc, free the old block. ANISTAR_OK; ENOMEM leaves the star empty (no vertices,
  * no facets: the run ends with the error). st->d is NULL after either.
  */
-static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scratch *sc) {
+static anistar_status star_close(const as_star_env *env, as_star *st, as_star_scratch *sc) {
+    anistar_context *ctx = env->ctx;
     as_del3 *d = st->d;
     /* the working arrays go back to the scratch (they may have grown) */
     sc->rf = st->rf;
@@ -640,8 +644,10 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     const int32_t nv = d->nv, nt = d->nt;
     const size_t nrf = (size_t)st->nrf, nit = (size_t)st->nitet;
     const int fmt = star_fmt(nv, nt);
+    const int keep = env->keep_points;
     /* design: one block, the 8-byte arrays first */
-    size_t o_vx = nrf * sizeof(as_rfacet), o_isph = o_vx + 3 * (size_t)nv * sizeof(double);
+    size_t o_vx = nrf * sizeof(as_rfacet);
+    size_t o_isph = o_vx + (keep ? 3 * (size_t)nv * sizeof(double) : 0);
     size_t o_gid = o_isph + 4 * nit * sizeof(double);
     size_t o_itet = up8(o_gid + (size_t)nv * sizeof(as_gid));
     size_t o_vtet = o_itet + nit * sizeof(int32_t);
@@ -678,7 +684,7 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     }
     if (nt) memcpy(tflag, st->tflag, (size_t)nt);
     for (int32_t k = 0; k < nv; k++) {
-        memcpy(vx + 3 * (size_t)k, d->vert[k].x, 3 * sizeof *vx);
+        if (keep) memcpy(vx + 3 * (size_t)k, d->vert[k].x, 3 * sizeof *vx);
         vgid[k] = (as_gid)d->gid[k];
         int32_t vt = d->vert[k].tet;
         if (fmt == FMT_TINY) ((uint8_t *)vtet)[k] = (uint8_t)(vt + 1);
@@ -697,7 +703,7 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
     st->cap_isph = (int32_t)(4 * nit);
     st->tflag = tflag;
     st->cap_tflag = (size_t)nt;
-    st->vx = vx;
+    st->vx = keep ? vx : NULL;
     st->vgid = vgid;
     st->vtet = vtet;
     st->trec = trec;
@@ -712,9 +718,9 @@ static anistar_status star_close(anistar_context *ctx, as_star *st, as_star_scra
 }
 
 /* Close st after an operation that returned s: the operation's error wins. */
-static anistar_status star_done(anistar_context *ctx, as_star *st, as_star_scratch *sc,
+static anistar_status star_done(const as_star_env *env, as_star *st, as_star_scratch *sc,
                                 anistar_status s) {
-    anistar_status c = star_close(ctx, st, sc);
+    anistar_status c = star_close(env, st, sc);
     return s != ANISTAR_OK ? s : c;
 }
 
@@ -785,7 +791,7 @@ anistar_status as_star_build(const as_star_env *env, as_star *st, const as_metri
 anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
                                     const as_metric_frame *mf, int32_t gid,
                                     const int32_t *seeds, int32_t n, as_star_scratch *sc) {
-    anistar_status s = star_open(env->ctx, st, sc);
+    anistar_status s = star_open(env, st, mf, sc, 0);
     if (s != ANISTAR_OK) return s;
     s = star_build(env, st, mf, gid);
     int32_t nv_base = st->d->nv;
@@ -797,7 +803,7 @@ anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
-    s = star_done(env->ctx, st, sc, s);
+    s = star_done(env, st, sc, s);
     st->nv_base = nv_base;
     return s;
 }
@@ -805,10 +811,18 @@ anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
 anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                               const int32_t *gids, int32_t n, as_star_scratch *sc,
                               int32_t *changed) {
-    anistar_status s = star_open(env->ctx, st, sc);
+    anistar_status s = star_open(env, st, mf, sc, 1);
     if (s != ANISTAR_OK) return s;
     s = star_insert(env, st, mf, gids, n, sc, changed);
-    return star_done(env->ctx, st, sc, s);
+    return star_done(env, st, sc, s);
+}
+
+anistar_status as_star_keep_points(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                                   as_star_scratch *sc) {
+    if (st->vx || st->nv == 0) return ANISTAR_OK;
+    anistar_status s = star_open(env, st, mf, sc, 1);
+    if (s != ANISTAR_OK) return s;
+    return star_close(env, st, sc);
 }
 
 anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_metric_frame *mf,
@@ -827,7 +841,7 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
     int32_t gid = st->gid;
     /* design: from scratch (star_build resets the working triangulation: slots, free list
      * and random state as for a new star); the packed block shrinks to the new size */
-    if ((s = star_open(ctx, st, sc)) != ANISTAR_OK) return s;
+    if ((s = star_open(env, st, mf, sc, 0)) != ANISTAR_OK) return s;
     s = star_build(env, st, mf, gid);
     for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
         int ins;
@@ -837,7 +851,7 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
         sc->nold = 0;
         s = star_update(env, st, mf, sc);
     }
-    s = star_done(ctx, st, sc, s);
+    s = star_done(env, st, sc, s);
     st->nv_base = st->nv;
     /* star_update left sc->old's entries in place (it copied the empty list): they are
      * the facets from before the rebuild */
@@ -847,10 +861,12 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
 
 /* as_del3_in_sphere on tet t of a packed star (the stored points and ids of its vertices:
  * the same predicate on the same numbers). */
-static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int64_t gid) {
+static int packed_in_sphere(const as_star *st, const double *xyz, const as_metric_frame *mf,
+                            int32_t t, const double y[3], int64_t gid) {
     int32_t r[8];
     tet_get(st, t, r);
     if (r[0] == AS_DEL3_DEAD) return 0;
+    double pts[4][3];
     const double *q[4];
     int64_t g[4];
     int k = -1;
@@ -861,7 +877,8 @@ static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int
             g[i] = -1;
             continue;
         }
-        q[i] = as_star_point(st, r[i]);
+        as_star_point(st, xyz, mf, r[i], pts[i]);
+        q[i] = pts[i];
         g[i] = as_star_vertex_gid(st, r[i]);
         if (q[i][0] == y[0] && q[i][1] == y[1] && q[i][2] == y[2]) return 0;
     }
@@ -873,7 +890,8 @@ static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int
     int32_t w[8];
     tet_get(st, r[4 + k] >> 3, w);
     for (int i = 0; i < 4; i++) {
-        q[i] = as_star_point(st, w[i]);
+        as_star_point(st, xyz, mf, w[i], pts[i]);
+        q[i] = pts[i];
         g[i] = as_star_vertex_gid(st, w[i]);
     }
     double det = as_insphere_filter(q[0], q[1], q[2], q[3], y);
@@ -882,16 +900,17 @@ static int packed_in_sphere(const as_star *st, int32_t t, const double y[3], int
     return sg > 0;
 }
 
-int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
-                      int64_t gid, int32_t *hint) {
+int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
+                      const double p[3], int64_t gid, int32_t *hint) {
     double y[3];
     as_metric_apply(mf, p, y);
     const as_del3 *d = st->d; /* NULL: packed (the usual case) */
     if (st->closed) {
         /* design: a site outside every inflated surface ball leaves the surface star
          * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
-        const double *V = d ? as_del3_point(d, st->vloc) : as_star_point(st, st->vloc);
-        double dd[3];
+        double V[3], dd[3];
+        if (d) memcpy(V, as_del3_point(d, st->vloc), sizeof V);
+        else as_star_point(st, xyz, mf, st->vloc, V);
         sub3(y, V, dd);
         if (!(dot3(dd, dd) < st->zr2)) return 0;
         int near = 0;
@@ -911,7 +930,7 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
             if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
         }
         if (d ? as_del3_in_sphere(d, st->itet[i], y, gid)
-              : packed_in_sphere(st, st->itet[i], y, gid)) {
+              : packed_in_sphere(st, xyz, mf, st->itet[i], y, gid)) {
             if (hint) *hint = st->itet[i];
             return 1;
         }

@@ -45,12 +45,14 @@ typedef struct as_star_env {
     anistar_context *ctx;
     const as_surface *surf;
     const double *xyz; /* 3 per global id (corners, poles, sites) */
+    int keep_points;   /* pack the stretched points with the stars (see as_star): needed
+                          once sites move (the optimiser), else recomputed */
 } as_star_env;
 
 /*
  * Memory (docs/algorithm.md, "Memory"): a star is idle nearly all the time, and an idle
- * star is packed: one block holds its triangulation (the stretched points, their global
- * ids, each vertex's incident tet, and per tet slot its four vertices in a byte each and
+ * star is packed: one block holds its triangulation (its vertices' global ids, each
+ * vertex's incident tet, and per tet slot its four vertices in a byte each and
  * its four neighbour handles in 16 bits, 12 bytes instead of 33, while the star has at
  * most AS_STAR_NARROW_NV vertices and AS_STAR_NARROW_NT tet slots; 32 bits beyond), its
  * tet flags, restricted facets, incident tets and their spheres, each at its
@@ -59,6 +61,12 @@ typedef struct as_star_env {
  * unpacked into its owner's working triangulation (sc->work) for
  * the length of one operation (build, insert, rebuild) and packed again after it: the
  * same arrays, slot for slot, so the results do not depend on the packing.
+ * The stretched points F_v q are not kept: as_metric_apply gives the same bits from the
+ * point q (env->xyz) and the frame the star was built with (its center's) every time,
+ * as del3 computed them at insertion. That holds while no site moves; the optimiser moves
+ * sites, and a star may hold a site without being rebuilt when it moves (it keeps the old
+ * position, as it always did): from the first move on (env->keep_points) every star
+ * packs its points too (as_star_keep_points).
  */
 #define AS_STAR_NARROW_NV 254
 #define AS_STAR_NARROW_NT 8192
@@ -77,7 +85,8 @@ typedef struct as_star {
     uint64_t rng;
     void *blk;          /* the one block of the packed star */
     size_t blk_bytes;
-    double *vx;         /* 3 per vertex: the stored (stretched) points */
+    double *vx;         /* 3 per vertex: the stored (stretched) points, or NULL (then
+                           recomputed: see above) */
     as_gid *vgid;       /* per vertex: its global id */
     void *vtet;         /* per vertex: an incident tet (+ 1 in 8 or 16 bits; or int32_t) */
     void *trec;         /* per tet slot: tiny, one uint64_t (vertex i + 2 in bits 6i..6i+5,
@@ -211,15 +220,28 @@ static inline void as_star_zone_ball(const as_metric_frame *mf, const as_rfacet 
  * (|F_v(c - p)| < AS_STAR_ZONE_INFLATE r). 0 otherwise. *hint (optional) receives the
  * tet found in conflict: the start of the walk when p is then inserted (st->hint).
  */
-int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
-                      int64_t gid, int32_t *hint);
+int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
+                      const double p[3], int64_t gid, int32_t *hint);
 
-/* The vertices of a packed star: their count, global ids and stored (stretched) points. */
+/* The vertices of a packed star: their count, global ids and stored (stretched) points
+ * (y = F_v q: xyz is every point by global id, mf the star's frame). */
 static inline int32_t as_star_nv(const as_star *st) { return st->nv; }
 static inline as_gid as_star_vertex_gid(const as_star *st, int32_t k) { return st->vgid[k]; }
-static inline const double *as_star_point(const as_star *st, int32_t k) {
-    return st->vx + 3 * (size_t)k;
+static inline void as_star_point(const as_star *st, const double *xyz, const as_metric_frame *mf,
+                                 int32_t k, double y[3]) {
+    if (st->vx) {
+        y[0] = st->vx[3 * (size_t)k];
+        y[1] = st->vx[3 * (size_t)k + 1];
+        y[2] = st->vx[3 * (size_t)k + 2];
+    } else {
+        as_metric_apply(mf, xyz + 3 * (size_t)st->vgid[k], y);
+    }
 }
+
+/* Repack star st (frame mf) with its points (env->keep_points must be set). ANISTAR_OK or
+ * ENOMEM. */
+anistar_status as_star_keep_points(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                                   as_star_scratch *sc);
 
 /* The index of the restricted facet with sorted ids g in st->rf, or -1. */
 int32_t as_star_find(const as_star *st, const as_gid g[3]);

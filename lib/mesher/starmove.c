@@ -80,7 +80,7 @@ static anistar_status touched_stars(as_starset *ss, as_starmove *mv, int32_t v,
             int touch = holds(st, v);
             if (!touch && pass == 1) {
                 ss->conflict_tests++;
-                touch = as_star_conflicts(st, &ss->mf[w], p, v, NULL);
+                touch = as_star_conflicts(st, &ss->mf[w], ss->xyz, p, v, NULL);
             }
             if (!touch) continue;
             if ((s = reserve_touched(ctx, mv, m + 1, m)) != ANISTAR_OK) return s;
@@ -167,6 +167,16 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
     mv->v = -1;
     if (v < ss->first_site || v >= ss->n || !ss->stars[v])
         return as_fail(ctx, ANISTAR_EINVAL, "optimize: %d is not a surface site", (int)v);
+    if (!ss->env.keep_points) {
+        /* design: from the first move on, stars keep their stretched points (star.h: a star
+         * not rebuilt keeps a moved site where it was) */
+        ss->env.keep_points = 1;
+        for (int32_t w = 0; w < ss->n; w++)
+            if (ss->stars[w] &&
+                (s = as_star_keep_points(&ss->env, ss->stars[w], &ss->mf[w], &ss->sc)) !=
+                    ANISTAR_OK)
+                return s;
+    }
     const double *x = ss->xyz + 3 * (size_t)v;
     as_metric_frame mfp;
     if ((s = as_starset_metric(ss, p, &mfp)) != ANISTAR_OK) return s;

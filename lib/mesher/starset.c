@@ -817,7 +817,7 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
         for (size_t k = 0; k < nc; k++) {
             int32_t q = ss->batch[k];
             ss->conflict_tests++;
-            if (!as_star_conflicts(st, mf, ss->xyz + 3 * (size_t)q, q, NULL)) {
+            if (!as_star_conflicts(st, mf, ss->xyz, ss->xyz + 3 * (size_t)q, q, NULL)) {
                 /* design: zones only shrink, so a site outside it now stays outside */
                 ss->stamp[q] = ep;
                 continue;
@@ -893,7 +893,7 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
         int32_t v = ss->cand.ids[k];
         ss->conflict_tests++;
         int32_t hint = -1;
-        if (!as_star_conflicts(ss->stars[v], &ss->mf[v], p, gid, &hint)) continue;
+        if (!as_star_conflicts(ss->stars[v], &ss->mf[v], ss->xyz, p, gid, &hint)) continue;
         if ((s = push_i32(ss->ctx, &ss->list, &ss->cap_list, nl, v)) != ANISTAR_OK) return s;
         if ((s = push_i32(ss->ctx, &ss->hints, &ss->cap_hints, nl, hint)) != ANISTAR_OK) return s;
         nl++;

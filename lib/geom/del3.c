@@ -1781,7 +1781,12 @@ static int circumcenter_exact(const double *a, const double *b, const double *c,
 int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]) {
     if (!as_del3_is_live(d, t) || as_del3_is_infinite(d, t)) return -1;
     const int32_t *tv = rec(d, t);
-    const double *a = pt(d, tv[0]), *b = pt(d, tv[1]), *p2 = pt(d, tv[2]), *p3 = pt(d, tv[3]);
+    as_del3_circumcenter_points(pt(d, tv[0]), pt(d, tv[1]), pt(d, tv[2]), pt(d, tv[3]), c);
+    return 0;
+}
+
+void as_del3_circumcenter_points(const double a[3], const double b[3], const double p2[3],
+                                 const double p3[3], double c[3]) {
     double u[3], v[3], w[3];
     for (int i = 0; i < 3; i++) {
         u[i] = b[i] - a[i];
@@ -1804,13 +1809,12 @@ int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]) {
     if (det * det * 65536.0 >= l2 * l2 * l2 && det != 0) {
         double s = 0.5 / det;
         for (int i = 0; i < 3; i++) c[i] = a[i] + (nu * vw[i] + nv * wu[i] + nw * uv[i]) * s;
-        return 0;
+        return;
     }
     circumcenter_dd(a, b, p2, p3, c);
     /* kappa > 2^50 (det^2 < 2^-100 L^6): exact. The tiers differ only in accuracy, so the
      * rounded det is good enough to choose. */
     if (det * det * 0x1p100 < l2 * l2 * l2) circumcenter_exact(a, b, p2, p3, c);
-    return 0;
 }
 
 int as_del3_sphere_filter(const as_del3 *d, int32_t t, const double p[3]) {

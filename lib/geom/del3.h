@@ -309,6 +309,10 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out);
  * infinite or dead (c untouched).
  */
 int as_del3_circumcenter(const as_del3 *d, int32_t t, double c[3]);
+/* The same for the finite tet of the stored points a, b, p2, p3 in record order (the same
+ * numbers as as_del3_circumcenter on that tet). */
+void as_del3_circumcenter_points(const double a[3], const double b[3], const double p2[3],
+                                 const double p3[3], double c[3]);
 
 /* ---- small accessors -------------------------------------------------------------------- */
 

@@ -573,7 +573,8 @@ static anistar_status topology_point(refiner *R, int32_t v, double out[3], doubl
         }
     }
     for (int32_t i = 0; i < st->nitet; i++) {
-        const double *S = st->isph + 4 * (size_t)i;
+        double S[4];
+        as_star_sphere(st, ss->xyz, mf, i, S);
         if (S[3] == -1) continue;
         double b[3], c[3];
         as_metric_unapply(mf, S, b);
@@ -607,7 +608,8 @@ static anistar_status topology_point(refiner *R, int32_t v, double out[3], doubl
     t2[2] = n[0] * t1[1] - n[1] * t1[0];
     double rad = INFINITY;
     for (int32_t i = 0; i < st->nitet; i++) {
-        const double *S = st->isph + 4 * (size_t)i;
+        double S[4];
+        as_star_sphere(st, ss->xyz, mf, i, S);
         if (S[3] > 0 && S[3] < rad * rad) rad = sqrt(S[3]);
     }
     if (!isfinite(rad)) return ANISTAR_OK;

@@ -21,7 +21,8 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_free(ctx, s->itet, (size_t)s->cap_itet * sizeof *s->itet);
     as_free(ctx, s->isph, (size_t)s->cap_isph * sizeof *s->isph);
     as_free(ctx, s->tflag, s->cap_tflag);
-    as_free(ctx, s->osph, (size_t)s->cap_osph * sizeof *s->osph);
+    as_free(ctx, s->fsph, s->cap_fsph * sizeof *s->fsph);
+    as_free(ctx, s->sprev, (size_t)s->cap_sprev * sizeof *s->sprev);
     as_free(ctx, s->slot, (size_t)s->cap_slot * sizeof *s->slot);
     memset(s, 0, sizeof *s);
 }
@@ -103,13 +104,33 @@ static anistar_status grow_tflag(anistar_context *ctx, as_star *st) {
     return ANISTAR_OK;
 }
 
+/* isph[4i+3] of an incident tet whose sphere star_update left for later (unchanged: its
+ * packed ball is kept; computed here only if needed) */
+#define SPH_LATER (-3.0)
+
+static void tet_sphere(const double *const *q, const double V[3], double S[4]);
+
+/* The sphere of the i-th incident tet of open star st (computed if left for later). */
+static const double *inc_sphere(as_star *st, int32_t i) {
+    double *S = st->isph + 4 * (size_t)i;
+    if (S[3] == SPH_LATER) {
+        const as_del3 *d = st->d;
+        const int32_t *tv = as_del3_tet_vertices(d, st->itet[i]);
+        const double *q[4];
+        int inf = as_del3_is_infinite(d, st->itet[i]);
+        for (int k = 0; k < 4 && !inf; k++) q[k] = as_del3_point(d, tv[k]);
+        tet_sphere(inf ? NULL : q, as_del3_point(d, st->vloc), S);
+    }
+    return S;
+}
+
 /* The circumcenter of tet t (stretched frame): from the spheres of the tets incident to v
  * when t is one of them (star_update computes those first: no circumcenter twice), else
  * computed. 0, or -1 for an infinite tet. */
-static int tet_center(const as_star *st, int32_t t, double cc[3]) {
+static int tet_center(as_star *st, int32_t t, double cc[3]) {
     for (int32_t i = 0; i < st->nitet; i++)
         if (st->itet[i] == t) {
-            const double *S = st->isph + 4 * (size_t)i;
+            const double *S = inc_sphere(st, i);
             if (S[3] == -1) return -1;
             memcpy(cc, S, 3 * sizeof(double));
             return 0;
@@ -292,6 +313,21 @@ static void box_add(double lo[3], double hi[3], const double c[3], const double 
     }
 }
 
+/* The cached sphere of a tet incident to v whose stored points are q (q NULL: an infinite
+ * tet), V v's stored point: star_update and as_star_sphere, the same arithmetic. */
+static void tet_sphere(const double *const *q, const double V[3], double S[4]) {
+    if (!q) {
+        S[0] = S[1] = S[2] = 0;
+        S[3] = -1;
+        return;
+    }
+    as_del3_circumcenter_points(q[0], q[1], q[2], q[3], S);
+    double dd[3];
+    sub3(S, V, dd);
+    double R = sqrt(dot3(dd, dd)) * (1 + 1e-9);
+    S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
+}
+
 /* Recompute restricted facets, closed flag and box after the del3 changed. */
 static anistar_status star_update(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                   as_star_scratch *sc) {
@@ -306,47 +342,49 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     /* the tets incident to v */
     if ((s = as_del3_vertex_tets(st->d, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
     const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
-    if ((s = grow_dbl(ctx, &sc->osph, &sc->cap_osph, 4 * nprev)) != ANISTAR_OK) return s;
+    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
+    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;
+    if ((s = grow_i32(ctx, &sc->sprev, &sc->cap_sprev, nnew)) != ANISTAR_OK) return s;
     if (st->d->nt > sc->cap_slot) {
         int32_t c0 = sc->cap_slot;
         if ((s = grow_i32(ctx, &sc->slot, &sc->cap_slot, st->d->nt)) != ANISTAR_OK) return s;
         for (int32_t t = c0; t < sc->cap_slot; t++) sc->slot[t] = -1;
     }
-    if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
-    if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;
     /* design: cached circumspheres. as_del3_circumcenter is within 2^-40 R of the true
      * center c* (R the true radius); with R' = |c - v| the computed radius,
      * |y - c*| >= |y - c| - 2^-40 R and R <= R' + 2^-40 R, so |y - c| > R'(1 + 1e-9) (with
      * the rounding of these few operations far below the 1e-9 margin) proves y strictly
-     * outside the true sphere: not in conflict, whatever the perturbation. A tet that is
-     * not fresh is unchanged since the last update: its sphere is kept (sc->slot maps its
-     * slot to its place in the previous list, sc->osph). */
-    if (nprev) memcpy(sc->osph, st->isph, 4 * (size_t)nprev * sizeof *sc->osph);
-    for (int32_t i = 0; i < nprev; i++)
-        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = i;
+     * outside the true sphere: not in conflict, whatever the perturbation. A packed star
+     * keeps only float balls around them (star_close): a tet that is not fresh is
+     * unchanged since the last update, its ball is kept (sc->sprev: its place in the
+     * previous list) and its sphere computed only if needed (inc_sphere). */
+    const int defer = !sc->sph_fresh; /* the previous balls are those of sc->fsph */
+    if (defer)
+        for (int32_t i = 0; i < nprev; i++)
+            if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = i;
     {
         const as_del3 *d = st->d;
         const double *V = as_del3_point(d, st->vloc);
         for (int32_t i = 0; i < nnew; i++) {
             int32_t t = sc->tets.a[i];
-            double *S = st->isph + 4 * (size_t)i, dd[3];
-            int32_t j = sc->slot[t];
+            int32_t j = defer ? sc->slot[t] : -1;
+            sc->sprev[i] = j;
             if (j >= 0 && !(st->tflag[t] & TF_FRESH)) {
-                memcpy(S, sc->osph + 4 * (size_t)j, 4 * sizeof *S);
+                st->isph[4 * (size_t)i + 3] = SPH_LATER;
                 continue;
             }
-            if (as_del3_circumcenter(d, t, S) != 0) {
-                S[0] = S[1] = S[2] = 0;
-                S[3] = -1;
-                continue;
-            }
-            sub3(S, V, dd);
-            double R = sqrt(dot3(dd, dd)) * (1 + 1e-9);
-            S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
+            sc->sprev[i] = -1;
+            const int32_t *tv = as_del3_tet_vertices(d, t);
+            const double *q[4];
+            int inf = as_del3_is_infinite(d, t);
+            for (int k = 0; k < 4 && !inf; k++) q[k] = as_del3_point(d, tv[k]);
+            tet_sphere(inf ? NULL : q, V, st->isph + 4 * (size_t)i);
         }
     }
-    for (int32_t i = 0; i < nprev; i++)
-        if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = -1;
+    if (defer)
+        for (int32_t i = 0; i < nprev; i++)
+            if (st->itet[i] < sc->cap_slot) sc->slot[st->itet[i]] = -1;
+    sc->sph_fresh = 1;
     memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
     st->nitet = nnew;
     if ((s = as_del3_vertex_facets(st->d, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
@@ -375,12 +413,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         if (o >= 0) {
             *f = sc->old[o];
             f->fresh = 0;
-            f->face = face;
             continue;
         }
         memset(f, 0, sizeof *f);
         memcpy(f->g, g, sizeof g);
-        f->face = face;
         f->fresh = 1;
         /* design: dual segment between the two mapped circumcenters; the crossing nearest
          * the facet's own circumcenter (DESIGN.md 4.4). */
@@ -433,7 +469,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     } else {
         const double *V = as_del3_point(d, st->vloc);
         for (int32_t k = 0; k < st->nitet; k++) {
-            const double *cc = st->isph + 4 * (size_t)k;
+            const double *cc = inc_sphere(st, k);
             double x[3], h[3], dd[3];
             if (cc[3] == -1) continue; /* infinite */
             sub3(cc, V, dd);
@@ -579,8 +615,8 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
         scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
                       sizeof *sc->itet) ||
-        scratch_fit32(ctx, (void **)&sc->isph, &sc->cap_isph, 4 * (size_t)st->nitet,
-                      sizeof *sc->isph) ||
+        scratch_fit(ctx, (void **)&sc->fsph, &sc->cap_fsph, 4 * (size_t)st->nitet,
+                    sizeof *sc->fsph) ||
         scratch_fit(ctx, (void **)&sc->tflag, &sc->cap_tflag, (size_t)nt, 1) ||
         (nv && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
@@ -588,7 +624,7 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     if (st->nrf) memcpy(sc->rf, st->rf, (size_t)st->nrf * sizeof *sc->rf);
     if (st->nitet) {
         memcpy(sc->itet, st->itet, (size_t)st->nitet * sizeof *sc->itet);
-        memcpy(sc->isph, st->isph, 4 * (size_t)st->nitet * sizeof *sc->isph);
+        memcpy(sc->fsph, st->fsph, 4 * (size_t)st->nitet * sizeof *sc->fsph);
     }
     if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
     if (nv) {
@@ -615,6 +651,7 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     st->cap_itet = sc->cap_itet;
     st->isph = sc->isph;
     st->cap_isph = sc->cap_isph;
+    sc->sph_fresh = 0;
     st->tflag = sc->tflag;
     st->cap_tflag = sc->cap_tflag;
     st->d = d;
@@ -622,6 +659,36 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
 }
 
 static size_t up8(size_t n) { return (n + 7) & ~(size_t)7; }
+
+/*
+ * The float ball f of a packed star around the sphere S of an update (star.h, fsph).
+ * design: c_f = (float) S rounded per coordinate, e = |S - c_f| (the differences are
+ * exact in double), radius sqrt(S[3]) + e plus a relative 1e-6 for the few roundings of
+ * this and of the test (below 1e-15 relative), rounded up to a float. Then
+ * |y - c_f| > r_f proves |y - S| > sqrt(S[3]): outside, as the double filter proved.
+ * No ball (-1) where S has no bound or does not fit a float.
+ */
+static void sphere_ball(const double S[4], float f[4]) {
+    f[0] = f[1] = f[2] = 0;
+    f[3] = -1;
+    if (!(S[3] >= 0)) return;
+    double e2 = 0;
+    float c[3];
+    for (int k = 0; k < 3; k++) {
+        c[k] = (float)S[k];
+        if (!isfinite(c[k])) return;
+        double e = S[k] - (double)c[k];
+        e2 += e * e;
+    }
+    double b = (sqrt(S[3]) + sqrt(e2)) * (1 + 1e-6);
+    float fb = (float)b;
+    if ((double)fb < b) fb = nextafterf(fb, INFINITY);
+    if (!isfinite(fb)) return;
+    f[0] = c[0];
+    f[1] = c[1];
+    f[2] = c[2];
+    f[3] = fb;
+}
 
 /*
  * Pack star st (open: st->d) into a new block of the exact size, give the working arrays
@@ -648,7 +715,8 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     /* design: one block, the 8-byte arrays first */
     size_t o_vx = nrf * sizeof(as_rfacet);
     size_t o_isph = o_vx + (keep ? 3 * (size_t)nv * sizeof(double) : 0);
-    size_t o_gid = o_isph + 4 * nit * sizeof(double);
+    size_t o_fsph = up8(o_isph);
+    size_t o_gid = up8(o_fsph + 4 * nit * sizeof(float));
     size_t o_itet = up8(o_gid + (size_t)nv * sizeof(as_gid));
     size_t o_vtet = o_itet + nit * sizeof(int32_t);
     size_t o_trec = up8(o_vtet + (size_t)nv * fmt_vtet_bytes[fmt]);
@@ -661,6 +729,7 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
         st->blk_bytes = 0;
         st->nv = st->nt = st->nlive = st->nrf = st->nitet = 0;
         st->cap_rf = st->cap_itet = st->cap_isph = 0;
+        st->fsph = NULL;
         st->cap_tflag = 0;
         st->rf = NULL;
         st->itet = NULL;
@@ -672,7 +741,8 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
     }
     as_rfacet *rf = (as_rfacet *)(void *)blk;
-    double *vx = (double *)(void *)(blk + o_vx), *isph = (double *)(void *)(blk + o_isph);
+    double *vx = (double *)(void *)(blk + o_vx);
+    float *fsph = (float *)(void *)(blk + o_fsph);
     as_gid *vgid = (as_gid *)(void *)(blk + o_gid);
     int32_t *itet = (int32_t *)(void *)(blk + o_itet);
     void *vtet = blk + o_vtet, *trec = blk + o_trec;
@@ -680,7 +750,16 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     if (nrf) memcpy(rf, st->rf, nrf * sizeof *rf);
     if (nit) {
         memcpy(itet, st->itet, nit * sizeof *itet);
-        memcpy(isph, st->isph, 4 * nit * sizeof *isph);
+        if (sc->sph_fresh) {
+            for (size_t i = 0; i < nit; i++) {
+                if (st->isph[4 * i + 3] == SPH_LATER)
+                    memcpy(fsph + 4 * i, sc->fsph + 4 * (size_t)sc->sprev[i], 4 * sizeof *fsph);
+                else
+                    sphere_ball(st->isph + 4 * i, fsph + 4 * i);
+            }
+        } else {
+            memcpy(fsph, sc->fsph, 4 * nit * sizeof *fsph);
+        }
     }
     if (nt) memcpy(tflag, st->tflag, (size_t)nt);
     for (int32_t k = 0; k < nv; k++) {
@@ -699,8 +778,9 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     st->cap_rf = (int32_t)nrf;
     st->itet = itet;
     st->cap_itet = (int32_t)nit;
-    st->isph = isph;
-    st->cap_isph = (int32_t)(4 * nit);
+    st->isph = NULL;
+    st->cap_isph = 0;
+    st->fsph = fsph;
     st->tflag = tflag;
     st->cap_tflag = (size_t)nt;
     st->vx = keep ? vx : NULL;
@@ -900,6 +980,25 @@ static int packed_in_sphere(const as_star *st, const double *xyz, const as_metri
     return sg > 0;
 }
 
+void as_star_sphere(const as_star *st, const double *xyz, const as_metric_frame *mf, int32_t i,
+                    double S[4]) {
+    int32_t r[8];
+    tet_get(st, st->itet[i], r);
+    double pts[4][3], V[3];
+    const double *q[4];
+    int inf = 0;
+    for (int k = 0; k < 4; k++) {
+        if (r[k] < 0) {
+            inf = 1;
+            break;
+        }
+        as_star_point(st, xyz, mf, r[k], pts[k]);
+        q[k] = pts[k];
+    }
+    as_star_point(st, xyz, mf, st->vloc, V);
+    tet_sphere(inf ? NULL : q, V, S);
+}
+
 int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
                       const double p[3], int64_t gid, int32_t *hint) {
     double y[3];
@@ -923,11 +1022,20 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         if (!near) return 0;
     }
     for (int32_t i = 0; i < st->nitet; i++) {
-        const double *S = st->isph + 4 * (size_t)i;
-        if (S[3] >= 0) {
-            double dd[3];
-            sub3(y, S, dd);
-            if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+        if (d) {
+            const double *S = st->isph + 4 * (size_t)i;
+            if (S[3] >= 0) {
+                double dd[3];
+                sub3(y, S, dd);
+                if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+            }
+        } else {
+            const float *F = st->fsph + 4 * (size_t)i;
+            if (F[3] >= 0) {
+                double dd[3] = {y[0] - (double)F[0], y[1] - (double)F[1], y[2] - (double)F[2]};
+                double b = F[3];
+                if (dot3(dd, dd) > b * b) continue; /* proven outside (see sphere_ball) */
+            }
         }
         if (d ? as_del3_in_sphere(d, st->itet[i], y, gid)
               : packed_in_sphere(st, xyz, mf, st->itet[i], y, gid)) {

@@ -32,10 +32,9 @@
 
 /* A restricted facet of a star (always incident to the star's center). */
 typedef struct as_rfacet {
-    as_gid g[3];   /* global ids, ascending */
-    int32_t face;  /* 4t+i in the star's del3 (valid until the star changes) */
     double c[3];   /* surface center c_v(tau) on S */
     double r;      /* r_v(tau) = |F_v (c - v)| */
+    as_gid g[3];   /* global ids, ascending */
     uint8_t fresh; /* 1 if created or moved by the last update (center recomputed) */
     uint8_t queued;/* bit k: an entry of rule k+1's queue refers to this facet */
 } as_rfacet;
@@ -108,11 +107,15 @@ typedef struct as_star {
     /* closed stars: the inflated zone in the stretched frame (as_star_zone_ball of each
      * facet) lies in the ball of center F_v v and squared radius zr2 */
     double zr2;
-    /* per itet[i]: isph[4i..4i+2] its circumcenter (stretched frame), isph[4i+3] a bound
-     * on its squared circumradius (-1 for an infinite tet): a proven filter in front of
-     * the exact in-sphere test (see as_star_conflicts) */
+    /* while open, after an update: per itet[i], isph[4i..4i+2] its circumcenter
+     * (stretched frame), isph[4i+3] a bound on its squared circumradius (-1 for an
+     * infinite tet, -2 none); as_star_sphere recomputes them for a packed star */
     double *isph;
     int32_t cap_isph;
+    /* packed: per itet[i], a float ball containing that circumsphere (center fsph[4i..],
+     * radius fsph[4i+3], -1: none): a proven filter in front of the exact in-sphere test
+     * (as_star_conflicts; 16 bytes instead of 32 per incident tet) */
+    float *fsph;
 } as_star;
 
 /* Scratch shared by every star of one owner (never per star). */
@@ -135,10 +138,16 @@ typedef struct as_star_scratch {
     int32_t cap_isph;
     uint8_t *tflag;
     size_t cap_tflag;
-    /* star_update's reuse of circumspheres: the previous isph (osph) and, per tet slot,
-     * its index there (slot; -1 between updates) */
-    double *osph;
-    int32_t cap_osph;
+    /* the packed filter balls of the open star (its previous incident tets'), for its
+     * close: the balls of tets an update did not change are kept, not recomputed (per
+     * incident tet, sprev: the index of its ball there; sph_fresh 0: no update) */
+    float *fsph;
+    size_t cap_fsph;
+    int sph_fresh;
+    int32_t *sprev;
+    int32_t cap_sprev;
+    /* star_update: per tet slot, its index in the previous incident list (-1 between
+     * updates) */
     int32_t *slot;
     int32_t cap_slot;
 } as_star_scratch;
@@ -237,6 +246,11 @@ static inline void as_star_point(const as_star *st, const double *xyz, const as_
         as_metric_apply(mf, xyz + 3 * (size_t)st->vgid[k], y);
     }
 }
+
+/* The sphere of the i-th incident tet of packed star st (frame mf) as an update computes
+ * it (star.h, isph): center S[0..2], S[3] the squared radius bound or -1 / -2. */
+void as_star_sphere(const as_star *st, const double *xyz, const as_metric_frame *mf, int32_t i,
+                    double S[4]);
 
 /* Repack star st (frame mf) with its points (env->keep_points must be set). ANISTAR_OK or
  * ENOMEM. */

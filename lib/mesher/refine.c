@@ -73,6 +73,15 @@ int as_queue_pop(as_queue *q, as_qentry *e) {
     return 1;
 }
 
+void as_queue_trim(anistar_context *ctx, as_queue *q) {
+    if (q->cap < 2048 || q->n >= q->cap / 4) return;
+    size_t cap = q->cap / 2;
+    as_qentry *a = as_realloc(ctx, q->a, q->cap * sizeof *q->a, cap * sizeof *q->a);
+    if (!a) return; /* keeping the larger array is fine */
+    q->a = a;
+    q->cap = cap;
+}
+
 void as_queue_free(anistar_context *ctx, as_queue *q) {
     as_free(ctx, q->a, q->cap * sizeof *q->a);
     memset(q, 0, sizeof *q);
@@ -281,6 +290,7 @@ static anistar_status drain(refiner *R) {
         }
     }
     ss->nnewinc = 0;
+    for (int k = 0; k < 3; k++) as_queue_trim(R->ctx, &R->q[k]);
     return ANISTAR_OK;
 }
 

@@ -24,6 +24,9 @@ typedef struct as_queue {
 anistar_status as_queue_push(anistar_context *ctx, as_queue *q, as_qentry e);
 /* Pop the top into *e; returns 0 if empty. */
 int as_queue_pop(as_queue *q, as_qentry *e);
+/* Halve the capacity of a queue a quarter full (from 2048 entries up): the queues peak
+ * early in a run and the stars later (memory). Never fails (a failed shrink keeps it). */
+void as_queue_trim(anistar_context *ctx, as_queue *q);
 void as_queue_free(anistar_context *ctx, as_queue *q);
 
 /*

@@ -11,6 +11,30 @@
 
 /* ---- points ------------------------------------------------------------------------ */
 
+/* The per-id arrays share one block, the 8-byte ones first: their bytes for cap ids. */
+static size_t points_bytes(size_t cap) {
+    return cap * (sizeof(as_metric_frame) + 3 * sizeof(double) + 2 * sizeof(double) +
+                  sizeof(as_star *) + sizeof(uint32_t) + sizeof(int32_t));
+}
+
+/* Point the per-id arrays into block blk laid out for cap ids. */
+static void points_layout(as_starset *ss, char *blk, size_t cap) {
+    ss->mf = (as_metric_frame *)(void *)blk;
+    ss->xyz = (double *)(void *)(blk + cap * sizeof(as_metric_frame));
+    ss->lfs = ss->xyz + 3 * cap;
+    ss->ascale = ss->lfs + cap;
+    ss->stars = (as_star **)(void *)(ss->ascale + cap);
+    ss->stamp = (uint32_t *)(void *)(ss->stars + cap);
+    ss->scomp = (int32_t *)(void *)(ss->stamp + cap);
+    ss->env.xyz = ss->xyz;
+}
+
+/*
+ * Room for need ids. design: one block for every per-id array, grown by half (not
+ * doubled: a run ends on average a quarter, not half, above its ids) with one realloc
+ * (the allocator may extend it in place, and a failure changes nothing); the arrays are
+ * then moved up to their new offsets, the last first (memmove: they overlap).
+ */
 static anistar_status grow_points(as_starset *ss, int64_t need) {
     if (need < 0 || need > ss->max_ids)
         return as_fail(ss->ctx, ANISTAR_EINVAL,
@@ -19,58 +43,34 @@ static anistar_status grow_points(as_starset *ss, int64_t need) {
                        (long)ss->max_ids);
     if (need <= ss->cap) return ANISTAR_OK;
     size_t cap = ss->cap ? (size_t)ss->cap : 256;
-    while (cap < (size_t)need) cap *= 2;
+    while (cap < (size_t)need) cap += cap / 2;
     if (cap > (size_t)ss->max_ids) cap = (size_t)ss->max_ids;
     size_t old = (size_t)ss->cap;
-    /* design: allocate all four arrays first, so a failure changes nothing */
-    double *x = as_alloc_array(ss->ctx, cap, 3 * sizeof *x);
-    as_metric_frame *m = as_alloc_array(ss->ctx, cap, sizeof *m);
-    as_star **st = as_alloc_array(ss->ctx, cap, sizeof *st);
-    uint32_t *sp = as_alloc_array(ss->ctx, cap, sizeof *sp);
-    double *lf = as_alloc_array(ss->ctx, cap, sizeof *lf);
-    int32_t *sc = as_alloc_array(ss->ctx, cap, sizeof *sc);
-    double *as = as_alloc_array(ss->ctx, cap, sizeof *as);
-    if (!x || !m || !st || !sp || !lf || !sc || !as) {
-        as_free(ss->ctx, as, cap * sizeof *as);
-        as_free(ss->ctx, x, cap * 3 * sizeof *x);
-        as_free(ss->ctx, m, cap * sizeof *m);
-        as_free(ss->ctx, st, cap * sizeof *st);
-        as_free(ss->ctx, sp, cap * sizeof *sp);
-        as_free(ss->ctx, lf, cap * sizeof *lf);
-        as_free(ss->ctx, sc, cap * sizeof *sc);
-        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (points)");
-    }
-    if (old) {
-        memcpy(x, ss->xyz, old * 3 * sizeof *x);
-        memcpy(m, ss->mf, old * sizeof *m);
-        memcpy(st, ss->stars, old * sizeof *st);
-        memcpy(sp, ss->stamp, old * sizeof *sp);
-        memcpy(lf, ss->lfs, old * sizeof *lf);
-        memcpy(sc, ss->scomp, old * sizeof *sc);
-        memcpy(as, ss->ascale, old * sizeof *as);
-    }
+    char *blk = as_realloc(ss->ctx, ss->pblk, points_bytes(old), points_bytes(cap));
+    if (!blk) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (points)");
+    /* the old arrays, in the grown block at their old offsets */
+    points_layout(ss, blk, old);
+    as_metric_frame *m0 = ss->mf;
+    double *x0 = ss->xyz, *lf0 = ss->lfs, *as0 = ss->ascale;
+    as_star **st0 = ss->stars;
+    uint32_t *sp0 = ss->stamp;
+    int32_t *sc0 = ss->scomp;
+    points_layout(ss, blk, cap);
+    memmove(ss->scomp, sc0, old * sizeof *sc0);
+    memmove(ss->stamp, sp0, old * sizeof *sp0);
+    memmove(ss->stars, st0, old * sizeof *st0);
+    memmove(ss->ascale, as0, old * sizeof *as0);
+    memmove(ss->lfs, lf0, old * sizeof *lf0);
+    memmove(ss->xyz, x0, old * 3 * sizeof *x0);
+    (void)m0; /* mf stays at offset 0 */
     for (size_t i = old; i < cap; i++) {
-        st[i] = NULL;
-        sp[i] = 0;
-        lf[i] = NAN;
-        sc[i] = -1;
-        as[i] = 1;
+        ss->stars[i] = NULL;
+        ss->stamp[i] = 0;
+        ss->lfs[i] = NAN;
+        ss->scomp[i] = -1;
+        ss->ascale[i] = 1;
     }
-    as_free(ss->ctx, ss->xyz, old * 3 * sizeof *x);
-    as_free(ss->ctx, ss->mf, old * sizeof *m);
-    as_free(ss->ctx, ss->stars, old * sizeof *st);
-    as_free(ss->ctx, ss->stamp, old * sizeof *sp);
-    as_free(ss->ctx, ss->lfs, old * sizeof *lf);
-    as_free(ss->ctx, ss->scomp, old * sizeof *sc);
-    as_free(ss->ctx, ss->ascale, old * sizeof *as);
-    ss->xyz = x;
-    ss->env.xyz = x;
-    ss->mf = m;
-    ss->stars = st;
-    ss->stamp = sp;
-    ss->lfs = lf;
-    ss->scomp = sc;
-    ss->ascale = as;
+    ss->pblk = blk;
     ss->cap = (int32_t)cap;
     return ANISTAR_OK;
 }
@@ -508,14 +508,7 @@ void as_starset_destroy(as_starset *ss) {
         as_star_destroy(ctx, ss->spare);
         as_free(ctx, ss->spare, sizeof *ss->spare);
     }
-    size_t cap = (size_t)ss->cap;
-    as_free(ctx, ss->xyz, cap * 3 * sizeof *ss->xyz);
-    as_free(ctx, ss->mf, cap * sizeof *ss->mf);
-    as_free(ctx, ss->stars, cap * sizeof *ss->stars);
-    as_free(ctx, ss->stamp, cap * sizeof *ss->stamp);
-    as_free(ctx, ss->lfs, cap * sizeof *ss->lfs);
-    as_free(ctx, ss->scomp, cap * sizeof *ss->scomp);
-    as_free(ctx, ss->ascale, cap * sizeof *ss->ascale);
+    as_free(ctx, ss->pblk, points_bytes((size_t)ss->cap));
     as_feature_free(ctx, &ss->feat);
     as_free(ctx, ss->fix, ss->cap_fix * 4 * sizeof *ss->fix);
     as_free(ctx, ss->trouble, ss->cap_trouble * 4 * sizeof *ss->trouble);

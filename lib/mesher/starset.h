@@ -59,6 +59,8 @@ typedef struct as_starset {
 
     int32_t n, cap;          /* points (global ids) */
     int32_t max_ids;         /* the id limit: AS_STARSET_MAX_IDS (tests lower it) */
+    void *pblk;              /* the one block of the per-id arrays (xyz, mf, stars, stamp,
+                                lfs, scomp, ascale: cap each) */
     double *xyz;             /* 3 per id */
     as_metric_frame *mf;     /* per id (identity for corners and poles) */
     as_star **stars;         /* per id (NULL for corners and poles) */

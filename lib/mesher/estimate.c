@@ -26,9 +26,10 @@
  * r0 alone (sphere and ellipsoid, euclidean, r0 from R/3 to R/100; docs/benchmarks.md). */
 #define AS_ESTIMATE_FILL 1.7
 
-/* Peak bytes per output vertex of a run (docs/benchmarks.md: 7.1-7.7 KB measured on the
- * torus, the shock sphere, the chair and the mesh inputs). */
-#define AS_ESTIMATE_BYTES_PER_VERTEX 7600.0
+/* Peak bytes per output vertex of a run (docs/benchmarks.md: 2.7-3.4 KB measured on the
+ * torus, the shock sphere, the chair, knot1, fandisk, the bunny, the elephant and the
+ * skull image). */
+#define AS_ESTIMATE_BYTES_PER_VERTEX 3400.0
 
 static inline double dot3(const double a[3], const double b[3]) {
     return (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2];

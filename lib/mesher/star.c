@@ -635,7 +635,30 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
             x->loc = -1;
             d->gid[k] = st->vgid[k];
         }
-        for (int32_t t = 0; t < nt; t++) tet_get(st, t, d->tet + 8 * (size_t)t);
+        if (st->fmt == FMT_TINY) { /* the common case, unrolled */
+            const uint64_t *w = st->trec;
+            for (int32_t t = 0; t < nt; t++) {
+                int32_t *r = d->tet + 8 * (size_t)t;
+                uint64_t x = w[t];
+                if ((x & 63) == 0) {
+                    tet_get(st, t, r);
+                    continue;
+                }
+                r[0] = (int32_t)(x & 63) - 2;
+                r[1] = (int32_t)((x >> 6) & 63) - 2;
+                r[2] = (int32_t)((x >> 12) & 63) - 2;
+                r[3] = (int32_t)((x >> 18) & 63) - 2;
+                /* handle 4t'+j (10 bits) -> 8t'+j: the bits above j shifted up by one */
+                uint32_t h0 = (uint32_t)(x >> 24) & 1023, h1 = (uint32_t)(x >> 34) & 1023;
+                uint32_t h2 = (uint32_t)(x >> 44) & 1023, h3 = (uint32_t)(x >> 54) & 1023;
+                r[4] = (int32_t)(h0 + (h0 & ~3u));
+                r[5] = (int32_t)(h1 + (h1 & ~3u));
+                r[6] = (int32_t)(h2 + (h2 & ~3u));
+                r[7] = (int32_t)(h3 + (h3 & ~3u));
+            }
+        } else {
+            for (int32_t t = 0; t < nt; t++) tet_get(st, t, d->tet + 8 * (size_t)t);
+        }
         memset(d->mark, 0, (size_t)nt);
         d->nv = nv;
         d->nt = nt;
@@ -662,27 +685,26 @@ static size_t up8(size_t n) { return (n + 7) & ~(size_t)7; }
 
 /*
  * The float ball f of a packed star around the sphere S of an update (star.h, fsph).
- * design: c_f = (float) S rounded per coordinate, e = |S - c_f| (the differences are
- * exact in double), radius sqrt(S[3]) + e plus a relative 1e-6 for the few roundings of
- * this and of the test (below 1e-15 relative), rounded up to a float. Then
- * |y - c_f| > r_f proves |y - S| > sqrt(S[3]): outside, as the double filter proved.
+ * design: c_f = (float) S rounded per coordinate, e = |S - c_f| bounded by its L1 norm
+ * (the differences are exact in double), radius sqrt(S[3]) + e, times 1 + 2e-6 before the
+ * rounding to a float (which loses at most 2^-24 relative): r_f exceeds the radius by a
+ * relative 1e-6 at least, far above the roundings of this and of the test (below 1e-15
+ * relative). Then |y - c_f| > r_f proves |y - S| > sqrt(S[3]): outside, as the double
+ * filter proved.
  * No ball (-1) where S has no bound or does not fit a float.
  */
 static void sphere_ball(const double S[4], float f[4]) {
     f[0] = f[1] = f[2] = 0;
     f[3] = -1;
     if (!(S[3] >= 0)) return;
-    double e2 = 0;
+    double e1 = 0;
     float c[3];
     for (int k = 0; k < 3; k++) {
         c[k] = (float)S[k];
         if (!isfinite(c[k])) return;
-        double e = S[k] - (double)c[k];
-        e2 += e * e;
+        e1 += fabs(S[k] - (double)c[k]);
     }
-    double b = (sqrt(S[3]) + sqrt(e2)) * (1 + 1e-6);
-    float fb = (float)b;
-    if ((double)fb < b) fb = nextafterf(fb, INFINITY);
+    float fb = (float)((sqrt(S[3]) + e1) * (1 + 2e-6));
     if (!isfinite(fb)) return;
     f[0] = c[0];
     f[1] = c[1];
@@ -770,7 +792,29 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
         else if (fmt == FMT_NARROW) ((uint16_t *)vtet)[k] = (uint16_t)(vt + 1);
         else ((int32_t *)vtet)[k] = vt;
     }
-    for (int32_t t = 0; t < nt; t++) tet_put(trec, fmt, nt, t, d->tet + 8 * (size_t)t);
+    if (fmt == FMT_TINY) { /* the common case, unrolled */
+        uint64_t *w = trec;
+        for (int32_t t = 0; t < nt; t++) {
+            const int32_t *r = d->tet + 8 * (size_t)t;
+            if (r[0] == AS_DEL3_DEAD) {
+                tet_put(trec, fmt, nt, t, r);
+                continue;
+            }
+            uint64_t x = (uint64_t)(uint32_t)(r[0] + 2) | (uint64_t)(uint32_t)(r[1] + 2) << 6 |
+                         (uint64_t)(uint32_t)(r[2] + 2) << 12 |
+                         (uint64_t)(uint32_t)(r[3] + 2) << 18;
+            /* handle 8t'+j -> 4t'+j: the bits above j shifted down by one */
+            uint32_t h0 = (uint32_t)r[4], h1 = (uint32_t)r[5], h2 = (uint32_t)r[6];
+            uint32_t h3 = (uint32_t)r[7];
+            x |= (uint64_t)((h0 >> 1 & ~3u) | (h0 & 3)) << 24 |
+                 (uint64_t)((h1 >> 1 & ~3u) | (h1 & 3)) << 34 |
+                 (uint64_t)((h2 >> 1 & ~3u) | (h2 & 3)) << 44 |
+                 (uint64_t)((h3 >> 1 & ~3u) | (h3 & 3)) << 54;
+            w[t] = x;
+        }
+    } else {
+        for (int32_t t = 0; t < nt; t++) tet_put(trec, fmt, nt, t, d->tet + 8 * (size_t)t);
+    }
     as_free(ctx, st->blk, st->blk_bytes);
     st->blk = blk;
     st->blk_bytes = bytes;

@@ -656,8 +656,28 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
                 r[6] = (int32_t)(h2 + (h2 & ~3u));
                 r[7] = (int32_t)(h3 + (h3 & ~3u));
             }
+        } else if (st->fmt == FMT_NARROW) {
+            const uint16_t *h = st->trec;
+            const uint8_t *vb = (const uint8_t *)(h + 4 * (size_t)nt);
+            for (int32_t t = 0; t < nt; t++) {
+                int32_t *r = d->tet + 8 * (size_t)t;
+                const uint16_t *ht = h + 4 * (size_t)t;
+                const uint8_t *vt = vb + 4 * (size_t)t;
+                if (vt[0] == 0) {
+                    tet_get(st, t, r);
+                    continue;
+                }
+                r[0] = (int32_t)vt[0] - 2;
+                r[1] = (int32_t)vt[1] - 2;
+                r[2] = (int32_t)vt[2] - 2;
+                r[3] = (int32_t)vt[3] - 2;
+                r[4] = ht[0];
+                r[5] = ht[1];
+                r[6] = ht[2];
+                r[7] = ht[3];
+            }
         } else {
-            for (int32_t t = 0; t < nt; t++) tet_get(st, t, d->tet + 8 * (size_t)t);
+            memcpy(d->tet, st->trec, 8 * (size_t)nt * sizeof *d->tet);
         }
         memset(d->mark, 0, (size_t)nt);
         d->nv = nv;
@@ -684,25 +704,28 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
 static size_t up8(size_t n) { return (n + 7) & ~(size_t)7; }
 
 /*
- * The float ball f of a packed star around the sphere S of an update (star.h, fsph).
- * design: c_f = (float) S rounded per coordinate, e = |S - c_f| bounded by its L1 norm
- * (the differences are exact in double), radius sqrt(S[3]) + e, times 1 + 2e-6 before the
- * rounding to a float (which loses at most 2^-24 relative): r_f exceeds the radius by a
- * relative 1e-6 at least, far above the roundings of this and of the test (below 1e-15
- * relative). Then |y - c_f| > r_f proves |y - S| > sqrt(S[3]): outside, as the double
- * filter proved.
+ * The float ball f of a packed star around the sphere S of an update (star.h, fsph), its
+ * center relative to V = F_v v (a vertex of the tet: |S - V| is the radius, so the float
+ * rounding is relative to the radius, not to the coordinates).
+ * design: D = S - V in double (error below 2^-53 |D|), c_f = (float) D per coordinate,
+ * e = |D - c_f| bounded by its L1 norm plus 2^-52 |D|_1, radius sqrt(S[3]) + e, times
+ * 1 + 2e-6 before the rounding to a float (which loses at most 2^-24 relative): r_f
+ * exceeds |S - V - c_f| + sqrt(S[3]) by a relative 1e-6 at least, far above the roundings
+ * of the test (y - V, then - c_f: below 1e-15 of the radius where it matters). Then
+ * |(y - V) - c_f| > r_f proves |y - S| > sqrt(S[3]): outside, as the double filter proved.
  * No ball (-1) where S has no bound or does not fit a float.
  */
-static void sphere_ball(const double S[4], float f[4]) {
+static void sphere_ball(const double S[4], const double V[3], float f[4]) {
     f[0] = f[1] = f[2] = 0;
     f[3] = -1;
     if (!(S[3] >= 0)) return;
     double e1 = 0;
     float c[3];
     for (int k = 0; k < 3; k++) {
-        c[k] = (float)S[k];
+        double D = S[k] - V[k];
+        c[k] = (float)D;
         if (!isfinite(c[k])) return;
-        e1 += fabs(S[k] - (double)c[k]);
+        e1 += fabs(D - (double)c[k]) + fabs(D) * 0x1p-52;
     }
     float fb = (float)((sqrt(S[3]) + e1) * (1 + 2e-6));
     if (!isfinite(fb)) return;
@@ -777,7 +800,7 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
                 if (st->isph[4 * i + 3] == SPH_LATER)
                     memcpy(fsph + 4 * i, sc->fsph + 4 * (size_t)sc->sprev[i], 4 * sizeof *fsph);
                 else
-                    sphere_ball(st->isph + 4 * i, fsph + 4 * i);
+                    sphere_ball(st->isph + 4 * i, d->vert[st->vloc].x, fsph + 4 * i);
             }
         } else {
             memcpy(fsph, sc->fsph, 4 * nit * sizeof *fsph);
@@ -812,8 +835,28 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
                  (uint64_t)((h3 >> 1 & ~3u) | (h3 & 3)) << 54;
             w[t] = x;
         }
-    } else {
-        for (int32_t t = 0; t < nt; t++) tet_put(trec, fmt, nt, t, d->tet + 8 * (size_t)t);
+    } else if (fmt == FMT_NARROW) {
+        uint16_t *h = trec;
+        uint8_t *vb = (uint8_t *)(h + 4 * (size_t)nt);
+        for (int32_t t = 0; t < nt; t++) {
+            const int32_t *r = d->tet + 8 * (size_t)t;
+            if (r[0] == AS_DEL3_DEAD) {
+                tet_put(trec, fmt, nt, t, r);
+                continue;
+            }
+            uint16_t *ht = h + 4 * (size_t)t;
+            uint8_t *vt = vb + 4 * (size_t)t;
+            vt[0] = (uint8_t)(r[0] + 2);
+            vt[1] = (uint8_t)(r[1] + 2);
+            vt[2] = (uint8_t)(r[2] + 2);
+            vt[3] = (uint8_t)(r[3] + 2);
+            ht[0] = (uint16_t)r[4];
+            ht[1] = (uint16_t)r[5];
+            ht[2] = (uint16_t)r[6];
+            ht[3] = (uint16_t)r[7];
+        }
+    } else if (nt) {
+        memcpy(trec, d->tet, 8 * (size_t)nt * sizeof *d->tet);
     }
     as_free(ctx, st->blk, st->blk_bytes);
     st->blk = blk;
@@ -838,6 +881,7 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     st->free_head = d->free_head;
     st->hint = d->hint;
     st->rng = d->rng;
+    if (nv) memcpy(st->fv, d->vert[st->vloc].x, sizeof st->fv);
     return ANISTAR_OK;
 }
 
@@ -1051,9 +1095,8 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
     if (st->closed) {
         /* design: a site outside every inflated surface ball leaves the surface star
          * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
-        double V[3], dd[3];
-        if (d) memcpy(V, as_del3_point(d, st->vloc), sizeof V);
-        else as_star_point(st, xyz, mf, st->vloc, V);
+        const double *V = d ? as_del3_point(d, st->vloc) : st->fv;
+        double dd[3];
         sub3(y, V, dd);
         if (!(dot3(dd, dd) < st->zr2)) return 0;
         int near = 0;
@@ -1065,6 +1108,8 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         }
         if (!near) return 0;
     }
+    double w[3]; /* y - F_v v: the float balls' frame */
+    sub3(y, st->fv, w);
     for (int32_t i = 0; i < st->nitet; i++) {
         if (d) {
             const double *S = st->isph + 4 * (size_t)i;
@@ -1076,7 +1121,7 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         } else {
             const float *F = st->fsph + 4 * (size_t)i;
             if (F[3] >= 0) {
-                double dd[3] = {y[0] - (double)F[0], y[1] - (double)F[1], y[2] - (double)F[2]};
+                double dd[3] = {w[0] - (double)F[0], w[1] - (double)F[1], w[2] - (double)F[2]};
                 double b = F[3];
                 if (dot3(dd, dd) > b * b) continue; /* proven outside (see sphere_ball) */
             }

@@ -107,14 +107,15 @@ typedef struct as_star {
     /* closed stars: the inflated zone in the stretched frame (as_star_zone_ball of each
      * facet) lies in the ball of center F_v v and squared radius zr2 */
     double zr2;
+    double fv[3];       /* F_v v, v's stored point (packed stars: the filters' origin) */
     /* while open, after an update: per itet[i], isph[4i..4i+2] its circumcenter
      * (stretched frame), isph[4i+3] a bound on its squared circumradius (-1 for an
      * infinite tet, -2 none); as_star_sphere recomputes them for a packed star */
     double *isph;
     int32_t cap_isph;
-    /* packed: per itet[i], a float ball containing that circumsphere (center fsph[4i..],
-     * radius fsph[4i+3], -1: none): a proven filter in front of the exact in-sphere test
-     * (as_star_conflicts; 16 bytes instead of 32 per incident tet) */
+    /* packed: per itet[i], a float ball containing that circumsphere (center fv +
+     * fsph[4i..4i+2], radius fsph[4i+3], -1: none): a proven filter in front of the exact
+     * in-sphere test (as_star_conflicts; 16 bytes instead of 32 per incident tet) */
     float *fsph;
 } as_star;
 

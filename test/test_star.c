@@ -175,6 +175,106 @@ static void test_restricted_vs_brute_force(void **state) {
     anistar_context_free(ctx);
 }
 
+/* A packed star is its triangulation, slot for slot (issue 15): a star built and grown in
+ * batches against a del3 given the same points in the same order (same frame, same random
+ * state): the same vertices (ids, recomputed stretched points, incident tets), the same
+ * tet records and free list, in the three record formats (8, 12 and 32 bytes: stars of
+ * 20, 150 and 400 sites) and with the points kept (as after an optimiser move); the
+ * incident spheres recompute as del3's circumcenters, and the float balls contain them. */
+static void test_packed_star_is_its_del3(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    tu_rng r = {777};
+    const int32_t sizes[4] = {20, 150, 400, 20};
+    int fmts_seen = 0;
+    for (int trial = 0; trial < 4; trial++) {
+        int32_t n = 9 + sizes[trial];
+        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
+        for (int32_t c = 0; c < 8; c++)
+            for (int k = 0; k < 3; k++)
+                xyz[3 * c + k] = ((c >> k) & 1 ? 2.5 : -2.5) + 0.01 * (c + k);
+        for (int32_t i = 8; i < n; i++) sphere_point(&r, xyz + 3 * i);
+        as_metric_frame mf;
+        random_frame(&r, 3.0, &mf);
+        as_star_env env = {ctx, s, xyz, trial == 3};
+        as_star_scratch sc;
+        memset(&sc, 0, sizeof sc);
+        as_star st;
+        as_star_init(&st, ctx);
+        as_del3 ref;
+        as_del3_init(&ref, ctx);
+        ref.no_sphere_cache = 1;
+        assert_int_equal(as_star_build(&env, &st, &mf, 8, &sc), ANISTAR_OK);
+        for (int32_t k = 0; k < 9; k++)
+            assert_int_equal(as_del3_insert_frame(&ref, &mf, xyz + 3 * k, k, NULL), ANISTAR_OK);
+        int32_t done = 9;
+        while (done < n) {
+            int32_t b = 1 + (int32_t)(tu_rng_u64(&r) % 7), ids[8];
+            if (b > n - done) b = n - done;
+            for (int32_t i = 0; i < b; i++) {
+                ids[i] = done + i;
+                int rc = as_del3_insert_frame(&ref, &mf, xyz + 3 * (done + i), done + i, NULL);
+                assert_int_equal(rc, ANISTAR_OK);
+            }
+            assert_int_equal(as_star_insert(&env, &st, &mf, ids, b, &sc, NULL), ANISTAR_OK);
+            done += b;
+        }
+        assert_null(st.d);
+        assert_int_equal(st.nv, ref.nv);
+        assert_int_equal(st.nt, ref.nt);
+        assert_int_equal(st.nlive, ref.nlive);
+        assert_int_equal(st.free_head, ref.free_head);
+        assert_true((st.vx != NULL) == (trial == 3));
+        fmts_seen |= 1 << st.fmt;
+        for (int32_t k = 0; k < st.nv; k++) {
+            double y[3];
+            as_star_point(&st, xyz, &mf, k, y);
+            assert_memory_equal(y, as_del3_point(&ref, k), sizeof y);
+            assert_int_equal(as_star_vertex_gid(&st, k), ref.gid[k]);
+            assert_int_equal(as_star_vertex_tet(&st, k), ref.vert[k].tet);
+        }
+        for (int32_t t = 0; t < st.nt; t++) {
+            int32_t rec[8];
+            as_star_tet(&st, t, rec);
+            const int32_t *q = ref.tet + 8 * (size_t)t;
+            if (q[0] == AS_DEL3_DEAD) {
+                assert_int_equal(rec[0], AS_DEL3_DEAD);
+                assert_int_equal(rec[1], q[1]);
+            } else {
+                assert_memory_equal(rec, q, sizeof rec);
+            }
+        }
+        for (int32_t i = 0; i < st.nitet; i++) {
+            double S[4], c[3];
+            as_star_sphere(&st, xyz, &mf, i, S);
+            if (as_del3_is_infinite(&ref, st.itet[i])) {
+                assert_true(S[3] == -1);
+                continue;
+            }
+            assert_int_equal(as_del3_circumcenter(&ref, st.itet[i], c), 0);
+            assert_memory_equal(S, c, sizeof c);
+            const float *F = st.fsph + 4 * (size_t)i;
+            if (!(F[3] >= 0)) continue;
+            /* the float ball around F_v v holds the sphere of radius sqrt(S[3]) */
+            double e = 0;
+            for (int k = 0; k < 3; k++) {
+                double dk = st.fv[k] + (double)F[k] - S[k];
+                e += dk * dk;
+            }
+            assert_true(sqrt(e) + sqrt(S[3]) <= (double)F[3]);
+        }
+        as_del3_destroy(&ref);
+        as_star_destroy(ctx, &st);
+        as_star_scratch_free(ctx, &sc);
+        free(xyz);
+    }
+    assert_int_equal(fmts_seen, 7); /* wide, narrow and tiny all met */
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 static void test_fan_closed(void **state) {
     (void)state;
     as_rfacet f[4];
@@ -273,6 +373,7 @@ static void test_corners_generic(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fan_closed),
+        cmocka_unit_test(test_packed_star_is_its_del3),
         cmocka_unit_test(test_corners_generic),
         cmocka_unit_test(test_restricted_vs_brute_force),
         cmocka_unit_test(test_facet_table_vs_rescan),

@@ -1068,6 +1068,9 @@ static int packed_in_sphere(const as_star *st, const double *xyz, const as_metri
     return sg > 0;
 }
 
+void as_star_tet(const as_star *st, int32_t t, int32_t r[8]) { tet_get(st, t, r); }
+int32_t as_star_vertex_tet(const as_star *st, int32_t k) { return vtet_get(st, k); }
+
 void as_star_sphere(const as_star *st, const double *xyz, const as_metric_frame *mf, int32_t i,
                     double S[4]) {
     int32_t r[8];

@@ -248,6 +248,11 @@ static inline void as_star_point(const as_star *st, const double *xyz, const as_
     }
 }
 
+/* Tet slot t of packed star st as del3's record r[8] (a free slot: r[0] AS_DEL3_DEAD, r[1]
+ * its free-list link, the rest 0), and vertex k's incident tet. */
+void as_star_tet(const as_star *st, int32_t t, int32_t r[8]);
+int32_t as_star_vertex_tet(const as_star *st, int32_t k);
+
 /* The sphere of the i-th incident tet of packed star st (frame mf) as an update computes
  * it (star.h, isph): center S[0..2], S[3] the squared radius bound or -1 / -2. */
 void as_star_sphere(const as_star *st, const double *xyz, const as_metric_frame *mf, int32_t i,

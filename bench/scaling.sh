@@ -1,14 +1,16 @@
 #!/bin/sh
 # The scaling series of issue 15 (docs/benchmarks.md, "Scaling to 2·10^6 vertices"): the
 # paper's torus (torus,R=10,r=1, curvature metric, gamma0 1.5) with r0 falling from 0.068
-# to 0.0028, about 10^4, 10^5, 5·10^5, 10^6 and 2·10^6 output vertices. Each run is
+# to 0.0035, about 10^4, 10^5, 5·10^5, 10^6 and 2·10^6 output vertices (the count grows
+# about as r0^-1.7 here: the distortion bound sizes most facets). Each run is
 # timed with /usr/bin/time -v (wall seconds, max RSS) and reads its --stats (vertices,
 # peak_bytes: the library's own count of the bytes it held at once). Prints one markdown
 # row per run: r0, vertices, wall s, microseconds per vertex, peak bytes per vertex, max
 # RSS bytes per vertex, exit status.
 # One run at a time (the largest takes minutes and about 6 GB).
 # Usage: bench/scaling.sh [ANISTAR [SIZES]]   (default build/anistar; SIZES: small = up
-# to 10^5, medium = up to 10^6 (the default), all = up to 2·10^6)
+# to 10^5, medium = up to 10^6 (the default), all = up to 2·10^6 (about 9 minutes and
+# 6 GB more), or a quoted list of r0 values)
 set -u
 tool=${1:-build/anistar}
 sizes=${2:-medium}
@@ -18,9 +20,10 @@ trap 'rm -rf "$tmp"' EXIT
 
 case $sizes in
 small) list="0.068 0.017" ;;
-medium) list="0.068 0.017 0.0065 0.0042" ;;
-all) list="0.068 0.017 0.0065 0.0042 0.0028" ;;
-*) echo "usage: bench/scaling.sh [ANISTAR [small|medium|all]]" >&2; exit 2 ;;
+medium) list="0.068 0.017 0.0072 0.005" ;;
+all) list="0.068 0.017 0.0072 0.005 0.0035" ;;
+*[!0-9.\ ]* | "") echo "usage: bench/scaling.sh [ANISTAR [small|medium|all|'R0 ...']]" >&2; exit 2 ;;
+*) list=$sizes ;;
 esac
 
 num() { # num KEY FILE: the first number after "KEY": in a JSON file

@@ -99,9 +99,10 @@ static inline void *as_alloc_array(anistar_context *ctx, size_t count, size_t si
 
 /* Global ids of the mesher's points (corners, poles, sites; lib/mesher/starset.h): the
  * width of every id the star set stores (star vertices, restricted facets, facet keys,
- * queues, events) is this one switch. 32 bits by default, measured: 64-bit ids cost
- * about 10% more memory per output vertex (docs/algorithm.md, "Memory"), and 2^31 sites
- * is 5 TB of stars at our bytes per vertex. Build with -DAS_GID64 for 64-bit storage. */
+ * queues, events) is this one switch. 32 bits by default, measured: 64-bit ids cost 8.6%
+ * more memory per output vertex on the paper torus (docs/algorithm.md, "Global ids"), and
+ * 2^31 sites would be 5.9 TB at our bytes per vertex. -DAS_GID64: 64-bit storage (the id
+ * limit stays 2^31 - 1: counts, loops and the spatial indexes are int32). */
 #ifdef AS_GID64
 typedef int64_t as_gid;
 #else

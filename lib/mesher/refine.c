@@ -207,7 +207,80 @@ typedef struct refiner {
     size_t inc_low;
     uint64_t n3, low_at;
     int64_t low_vertices;
+    /* as_starset_verify_zones' selection (star_held): per site, its piece (union-find
+     * over the restricted facets of the stars) and per piece root whether one of its
+     * facets is not below hmin */
+    uint32_t *piece;
+    uint8_t *piece_refined;
+    size_t cap_piece, cap_piece_refined;
 } refiner;
+
+/*
+ * Whether star v needs as_starset_verify_zones: one of its restricted facets is held by
+ * hmin beyond r0, rho0 or gamma0 (as_facet_below_hmin; the facets the statistics count in
+ * facets_below_hmin), or every facet of its piece (the sites joined by restricted facets)
+ * is below hmin. design: the ball zone of paper 5.3 is sound where the sites are an
+ * epsilon-sample of S, which the rules establish where they are allowed to refine; where
+ * hmin stopped them the sample may be coarser than S (the noise of an image at its
+ * voxels): around a facet held beyond the bounds, and on a speck of S meshed with a few
+ * sites at hmin, whose Voronoi cells reach far beyond its surface balls and meet the
+ * other sheets of S there. Only those stars are checked; on the smooth inputs (no facet
+ * held, no such piece) this costs nothing. pieces_update computes the pieces first.
+ */
+static anistar_status pieces_update(refiner *R) {
+    as_starset *ss = R->ss;
+    size_t n = (size_t)ss->n;
+    if (!(ss->hmin > 0)) return ANISTAR_OK;
+    if (as_grow(R->ctx, (void **)&R->piece, &R->cap_piece, n, sizeof *R->piece) ||
+        as_grow(R->ctx, (void **)&R->piece_refined, &R->cap_piece_refined, n, 1))
+        return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    for (size_t i = 0; i < n; i++) {
+        R->piece[i] = (uint32_t)i;
+        R->piece_refined[i] = 0;
+    }
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        const as_star *st = ss->stars[v];
+        for (int32_t k = 0; st && k < st->nrf; k++) {
+            const int32_t *g = st->rf[k].g;
+            if (g[0] < ss->first_site) continue;
+            as_uf_union(R->piece, (uint32_t)g[0], (uint32_t)g[1]);
+            as_uf_union(R->piece, (uint32_t)g[0], (uint32_t)g[2]);
+        }
+    }
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        const as_star *st = ss->stars[v];
+        for (int32_t k = 0; st && k < st->nrf; k++)
+            if (st->rf[k].g[0] >= ss->first_site && !as_facet_below_hmin(ss, &st->rf[k]))
+                R->piece_refined[as_uf_find(R->piece, (uint32_t)v)] = 1;
+    }
+    return ANISTAR_OK;
+}
+
+static int star_held(void *arg, int32_t v) {
+    refiner *R = arg;
+    const as_starset *ss = R->ss;
+    const as_mesher_params *prm = R->prm;
+    const as_star *st = ss->stars[v];
+    if (!(ss->hmin > 0)) return 0;
+    if (!R->piece_refined[as_uf_find(R->piece, (uint32_t)v)]) return 1;
+    for (int32_t k = 0; k < st->nrf; k++) {
+        const as_rfacet *f = &st->rf[k];
+        if (!as_facet_below_hmin(ss, f)) continue;
+        if (f->r >= prm->r0) return 1;
+        double rho = as_radius_edge(&ss->mf[v], ss->xyz + 3 * (size_t)f->g[0],
+                                    ss->xyz + 3 * (size_t)f->g[1],
+                                    ss->xyz + 3 * (size_t)f->g[2], NULL);
+        if (rho > prm->rho0) return 1;
+        if (f->g[0] < ss->first_site) continue;
+        const as_metric_frame *m0 = &ss->mf[f->g[0]], *m1 = &ss->mf[f->g[1]],
+                              *m2 = &ss->mf[f->g[2]];
+        if (!as_metric_distortion_le(m0, m1, prm->gamma0) ||
+            !as_metric_distortion_le(m0, m2, prm->gamma0) ||
+            !as_metric_distortion_le(m1, m2, prm->gamma0))
+            return 1;
+    }
+    return 0;
+}
 
 static uint64_t rng_next(refiner *R) {
     /* xorshift64* */
@@ -1023,6 +1096,18 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if (rule == JOB_NONE) {
             int pushed = 0;
             if (ss->ninc == 0) {
+                /* design: no rule applies. First every star on the ball zone of paper
+                 * 5.3 is grown over its whole Delaunay region (as_starset_verify_zones):
+                 * a star that gains or loses a restricted facet there goes on with the
+                 * refinement. */
+                size_t opened = 0;
+                if ((s = pieces_update(&R)) != ANISTAR_OK ||
+                    (s = as_starset_verify_zones(ss, star_held, &R, &opened)) != ANISTAR_OK)
+                    break;
+                if (opened) {
+                    R.cnt.zones_opened += opened;
+                    continue;
+                }
                 /* design: no rule applies: the final checks decide. A wrong topology
                  * (components, Euler characteristic, orientation) means the feature
                  * size was overestimated: halve alpha and refine on (paper 2.3: any
@@ -1151,6 +1236,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     double t2 = now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
+    as_free(ctx, R.piece, R.cap_piece * sizeof *R.piece);
+    as_free(ctx, R.piece_refined, R.cap_piece_refined);
     if (s != ANISTAR_OK && done) {
         as_mesh_free(done);
         done = NULL;

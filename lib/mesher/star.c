@@ -115,7 +115,7 @@ anistar_status as_star_trim(anistar_context *ctx, as_star *st) {
     if (trim_array(ctx, (void **)&st->rf, &st->cap_rf, st->nrf, sizeof *st->rf) ||
         trim_array(ctx, (void **)&st->itet, &st->cap_itet, st->nitet, sizeof *st->itet) ||
         trim_array(ctx, (void **)&st->isph, &st->cap_isph, 4 * st->nitet, sizeof *st->isph) ||
-        trim_array(ctx, (void **)&st->zone, &st->cap_zone, st->closed ? 4 * st->nrf : 0,
+        trim_array(ctx, (void **)&st->zone, &st->cap_zone, AS_STAR_BALL_ZONE(st) ? 4 * st->nrf : 0,
                    sizeof *st->zone))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
     return ANISTAR_OK;
@@ -323,11 +323,59 @@ static void box_add(double lo[3], double hi[3], const double c[3], const double 
     }
 }
 
+/* The box of the conflict zone (see as_star_rezone in star.h). */
+anistar_status as_star_rezone(anistar_context *ctx, as_star *st, const as_metric_frame *mf) {
+    anistar_status s;
+    const as_del3 *d = &st->del;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    if (AS_STAR_BALL_ZONE(st)) {
+        /* design: the surface balls in the stretched frame, and one ball around F_v v
+         * holding them all, so that most candidates are rejected by one distance */
+        if ((s = grow_dbl(ctx, &st->zone, &st->cap_zone, 4 * st->nrf)) != ANISTAR_OK) return s;
+        const double *V = as_del3_point(d, st->vloc);
+        double zr = 0;
+        for (int32_t i = 0; i < st->nrf; i++) {
+            double *z = st->zone + 4 * (size_t)i, dd[3];
+            as_metric_apply(mf, st->rf[i].c, z);
+            z[3] = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            sub3(z, V, dd);
+            double e = sqrt(dot3(dd, dd)) + z[3];
+            if (e > zr) zr = e;
+        }
+        zr *= 1 + 4 * AS_STAR_SLACK;
+        st->zr2 = zr * zr;
+        for (int32_t i = 0; i < st->nrf; i++) {
+            double h[3];
+            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
+            box_add(lo, hi, st->rf[i].c, h);
+        }
+    } else {
+        const double *V = as_del3_point(d, st->vloc);
+        for (int32_t k = 0; k < st->nitet; k++) {
+            const double *cc = st->isph + 4 * (size_t)k;
+            double x[3], h[3], dd[3];
+            if (cc[3] == -1) continue; /* infinite */
+            sub3(cc, V, dd);
+            double R = sqrt(dot3(dd, dd));
+            as_metric_unapply(mf, cc, x);
+            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
+            box_add(lo, hi, x, h);
+        }
+    }
+    for (int k = 0; k < 3; k++) {
+        double pad = AS_STAR_SLACK * (fabs(lo[k]) + fabs(hi[k]) + (hi[k] - lo[k]));
+        st->lo[k] = lo[k] - pad;
+        st->hi[k] = hi[k] + pad;
+    }
+    return ANISTAR_OK;
+}
+
 /* Recompute restricted facets, closed flag and box after the del3 changed. */
 static anistar_status star_update(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                   as_star_scratch *sc) {
     anistar_context *ctx = env->ctx;
     anistar_status s;
+    st->version++;
     /* keep the old facets for center reuse and for the caller's diff */
     if ((s = grow_rf(ctx, &sc->old, &sc->cap_old, st->nrf)) != ANISTAR_OK) return s;
     if (st->nrf) memcpy(sc->old, st->rf, (size_t)st->nrf * sizeof *st->rf);
@@ -438,48 +486,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         st->rf[j + 1] = x;
     }
     st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
-
-    /* box of the conflict zone */
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    if (st->closed) {
-        /* design: the surface balls in the stretched frame, and one ball around F_v v
-         * holding them all, so that most candidates are rejected by one distance */
-        if ((s = grow_dbl(ctx, &st->zone, &st->cap_zone, 4 * st->nrf)) != ANISTAR_OK) return s;
-        const double *V = as_del3_point(d, st->vloc);
-        double zr = 0;
-        for (int32_t i = 0; i < st->nrf; i++) {
-            double *z = st->zone + 4 * (size_t)i, dd[3];
-            as_metric_apply(mf, st->rf[i].c, z);
-            z[3] = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
-            sub3(z, V, dd);
-            double e = sqrt(dot3(dd, dd)) + z[3];
-            if (e > zr) zr = e;
-        }
-        zr *= 1 + 4 * AS_STAR_SLACK;
-        st->zr2 = zr * zr;
-        for (int32_t i = 0; i < st->nrf; i++) {
-            double h[3];
-            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
-            box_add(lo, hi, st->rf[i].c, h);
-        }
-    } else {
-        const double *V = as_del3_point(d, st->vloc);
-        for (int32_t k = 0; k < st->nitet; k++) {
-            const double *cc = st->isph + 4 * (size_t)k;
-            double x[3], h[3], dd[3];
-            if (cc[3] == -1) continue; /* infinite */
-            sub3(cc, V, dd);
-            double R = sqrt(dot3(dd, dd));
-            as_metric_unapply(mf, cc, x);
-            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
-            box_add(lo, hi, x, h);
-        }
-    }
-    for (int k = 0; k < 3; k++) {
-        double pad = AS_STAR_SLACK * (fabs(lo[k]) + fabs(hi[k]) + (hi[k] - lo[k]));
-        st->lo[k] = lo[k] - pad;
-        st->hi[k] = hi[k] + pad;
-    }
+    if ((s = as_star_rezone(ctx, st, mf)) != ANISTAR_OK) return s;
     /* the fresh marks served this update */
     for (int32_t t = 0; t < d->nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
     return ANISTAR_OK;
@@ -630,12 +637,30 @@ anistar_status as_star_rebuild(const as_star_env *env, as_star *st, const as_met
     return s;
 }
 
+/* The exact Delaunay conflict of y = F_v p (global id gid) with a tet around v. */
+static int conflicts_at(const as_star *st, const double y[3], int64_t gid, int32_t *hint) {
+    const as_del3 *d = &st->del;
+    for (int32_t i = 0; i < st->nitet; i++) {
+        const double *S = st->isph + 4 * (size_t)i;
+        if (S[3] >= 0) {
+            double dd[3];
+            sub3(y, S, dd);
+            if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+        }
+        if (as_del3_in_sphere(d, st->itet[i], y, gid)) {
+            if (hint) *hint = st->itet[i];
+            return 1;
+        }
+    }
+    return 0;
+}
+
 int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double p[3],
                       int64_t gid, int32_t *hint) {
     double y[3];
     as_metric_apply(mf, p, y);
     const as_del3 *d = &st->del;
-    if (st->closed) {
+    if (AS_STAR_BALL_ZONE(st)) {
         /* design: a site outside every inflated surface ball leaves the surface star
          * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
         const double *V = as_del3_point(d, st->vloc);
@@ -650,17 +675,44 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         }
         if (!near) return 0;
     }
-    for (int32_t i = 0; i < st->nitet; i++) {
-        const double *S = st->isph + 4 * (size_t)i;
-        if (S[3] >= 0) {
-            double dd[3];
-            sub3(y, S, dd);
-            if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+    return conflicts_at(st, y, gid, hint);
+}
+
+int as_star_conflicts_delaunay(const as_star *st, const as_metric_frame *mf, const double p[3],
+                               int64_t gid, int32_t *hint) {
+    double y[3];
+    as_metric_apply(mf, p, y);
+    return conflicts_at(st, y, gid, hint);
+}
+
+anistar_status as_star_facet_extent(anistar_context *ctx, as_star *st,
+                                    as_star_scratch *sc, const int32_t g[3], int *in_dt,
+                                    double *ext) {
+    (void)ctx;
+    *in_dt = 0;
+    *ext = INFINITY;
+    const as_del3 *d = &st->del;
+    anistar_status s = as_del3_vertex_facets(&st->del, st->vloc, &sc->faces);
+    if (s != ANISTAR_OK) return s;
+    const double *V = as_del3_point(d, st->vloc);
+    for (size_t k = 0; k < sc->faces.n; k++) {
+        int32_t face = sc->faces.a[k], t1 = face >> 2, h[3], n = 0;
+        for (int j = 0; j < 4; j++)
+            if (j != (face & 3)) h[n++] = (int32_t)d->gid[as_del3_tet_vertex(d, t1, j)];
+        sort3(h);
+        if (h[0] != g[0] || h[1] != g[1] || h[2] != g[2]) continue;
+        *in_dt = 1;
+        int32_t t[2] = {t1, as_del3_mirror(d, face) >> 2};
+        double e = 0;
+        for (int q = 0; q < 2; q++) {
+            double cc[3], dd[3];
+            if (tet_center(st, t[q], cc) != 0) return ANISTAR_OK; /* infinite: +inf */
+            sub3(cc, V, dd);
+            double R = sqrt(dot3(dd, dd));
+            if (R > e) e = R;
         }
-        if (as_del3_in_sphere(d, st->itet[i], y, gid)) {
-            if (hint) *hint = st->itet[i];
-            return 1;
-        }
+        *ext = 2 * e * (1 + 1e-9);
+        return ANISTAR_OK;
     }
-    return 0;
+    return ANISTAR_OK;
 }

@@ -539,23 +539,9 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
          * perturbation is unique), then the certificate is checked again */
         size_t nviol = 0;
         ball_candidates(ctx, w, &mf, xi, sqrt(reach));
-        for (size_t q = 0; q < w->ids.n; q++) {
-            int32_t j = w->ids.ids[q];
-            if (w->mark[j] == (int64_t)i) continue;
-            double d2 = mdist2(&mf, w, (size_t)j, yi);
-            if (d2 > reach * (1 + 1e-9)) continue;
-            double y[3], e[3];
-            as_metric_apply(&mf, w->pts + 3 * (size_t)j, y);
-            for (size_t b = 0; b < nb; b++) {
-                sub3(y, w->balls + 4 * b, e);
-                if (dot3(e, e) <= w->balls[4 * b + 3] * (1 + 1e-9)) {
-                    w->order[k + nviol++] = j;
-                    w->mark[j] = (int64_t)i;
-                    break;
-                }
-            }
-        }
-        for (int32_t j = ncorner; j < nextra; j++) {
+        /* the candidates: the vertices in the box of the reach, then the poles left out */
+        for (size_t q = 0; q < w->ids.n + (size_t)(nextra - ncorner); q++) {
+            int32_t j = q < w->ids.n ? w->ids.ids[q] : ncorner + (int32_t)(q - w->ids.n);
             if (w->mark[j] == (int64_t)i) continue;
             double d2 = mdist2(&mf, w, (size_t)j, yi);
             if (d2 > reach * (1 + 1e-9)) continue;

@@ -2,6 +2,7 @@
  * output.c — the output mesh: stitching of the surface stars, orientation, statistics
  * (DESIGN.md 4.8, paper 4.1 "stitched together", 6.2 Figures 8 and 10). See mesher.h.
  */
+#include "geom/bvh.h"
 #include "mesher/mesher.h"
 #include "mesher/refine.h"
 
@@ -381,27 +382,16 @@ static anistar_status piece_cut_below_floor(anistar_context *ctx, const as_surfa
         anistar_status s = as_surface_crossing(ctx, surf, m, e, m, &hit, x);
         if (s != ANISTAR_OK) return s;
         if (hit) continue;
-        /* the first triangle of the piece on the ray (Moller-Trumbore) */
+        /* the first triangle of the piece on the ray (the exact contact test of the
+         * segment queries, as_segment_triangle) */
         double tbest = INFINITY;
         for (size_t i = 0; i < np; i++) {
             const int32_t *T = tm->tri + 3 * (size_t)ptri[i];
-            const double *a = tm->xyz + 3 * (size_t)T[0], *b = tm->xyz + 3 * (size_t)T[1],
-                         *c = tm->xyz + 3 * (size_t)T[2];
-            double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-            double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-            double pv[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
-                            dir[0] * e2[1] - dir[1] * e2[0]};
-            double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-            if (det == 0) continue;
-            double tv[3] = {m[0] - a[0], m[1] - a[1], m[2] - a[2]};
-            double u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
-            if (u < 0 || u > 1) continue;
-            double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2],
-                            tv[0] * e1[1] - tv[1] * e1[0]};
-            double v = (dir[0] * qv[0] + dir[1] * qv[1] + dir[2] * qv[2]) / det;
-            if (v < 0 || u + v > 1) continue;
-            double t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
-            if (t > 0 && t < tbest) tbest = t;
+            double t;
+            if (as_segment_triangle(m, e, tm->xyz + 3 * (size_t)T[0], tm->xyz + 3 * (size_t)T[1],
+                                    tm->xyz + 3 * (size_t)T[2], &t) != AS_HIT_NONE &&
+                t > 0 && t < tbest)
+                tbest = t;
         }
         if (!(tbest <= 1)) return ANISTAR_OK;
         double p[3], q[3], d2 = 0;

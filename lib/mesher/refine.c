@@ -1075,10 +1075,10 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if (rule == JOB_NONE) {
             int pushed = 0;
             if (ss->ninc == 0) {
-                /* design: no rule applies. First every star on the ball zone of paper
-                 * 5.3 is grown over its whole Delaunay region (as_starset_verify_zones):
-                 * a star that gains or loses a restricted facet there goes on with the
-                 * refinement. */
+                /* design: no rule applies. First the stars of pieces meshed wholly below
+                 * hmin are checked against every site that could change them
+                 * (as_starset_verify_zones, on_held_piece); a star found wrong takes its
+                 * whole Delaunay region as its zone and the refinement goes on. */
                 size_t opened = 0;
                 if ((s = pieces_update(&R)) != ANISTAR_OK ||
                     (s = as_starset_verify_zones(ss, on_held_piece, &R, &opened)) != ANISTAR_OK)

@@ -685,10 +685,8 @@ int as_star_conflicts_delaunay(const as_star *st, const as_metric_frame *mf, con
     return conflicts_at(st, y, gid, hint);
 }
 
-anistar_status as_star_facet_extent(anistar_context *ctx, as_star *st,
-                                    as_star_scratch *sc, const int32_t g[3], int *in_dt,
-                                    double *ext) {
-    (void)ctx;
+anistar_status as_star_facet_extent(as_star *st, as_star_scratch *sc, const int32_t g[3],
+                                    int *in_dt, double *ext) {
     *in_dt = 0;
     *ext = INFINITY;
     const as_del3 *d = &st->del;

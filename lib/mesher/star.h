@@ -191,9 +191,8 @@ anistar_status as_star_rezone(anistar_context *ctx, as_star *st, const as_metric
  * to the circumcenters of its two tets, so that both circumballs lie in the ball of
  * radius *ext around v (+inf when a tet is infinite or the facet is absent). Uses
  * sc->faces. OK or ENOMEM. */
-anistar_status as_star_facet_extent(anistar_context *ctx, as_star *st,
-                                    as_star_scratch *sc, const int32_t g[3], int *in_dt,
-                                    double *ext);
+anistar_status as_star_facet_extent(as_star *st, as_star_scratch *sc, const int32_t g[3],
+                                    int *in_dt, double *ext);
 
 /* The index of the restricted facet with sorted ids g in st->rf, or -1. */
 int32_t as_star_find(const as_star *st, const int32_t g[3]);

@@ -1058,34 +1058,25 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
         if ((s = as_star_build_seeded(&ss->env, sp, mf, v, ss->list, (int32_t)nseed,
                                       &ss->sc)) != ANISTAR_OK)
             return s;
-        /* need: the reach that decides every difference (0: none undecided) */
+        /* the facets of either star that the other lacks; need: the reach that decides
+         * every such difference (0: none undecided). A facet of the star that is not a
+         * Delaunay facet of a subset of the sites is not one of all of them. */
         double need = 0;
-        for (int32_t k = 0; k < st->nrf; k++) {
-            if (as_star_find(sp, st->rf[k].g) >= 0) continue;
-            int in_dt;
-            double ext;
-            if ((s = as_star_facet_extent(ss->ctx, sp, &ss->sc, st->rf[k].g, &in_dt, &ext)) !=
-                ANISTAR_OK)
-                return s;
-            /* not a Delaunay facet of a subset of the sites: not one of all of them */
-            if (!in_dt || whole || ext <= reach) {
-                *wrong = 1;
-                return ANISTAR_OK;
+        for (int pass = 0; pass < 2; pass++) {
+            const as_star *a = pass ? sp : st, *b = pass ? st : sp;
+            for (int32_t k = 0; k < a->nrf; k++) {
+                if (as_star_find(b, a->rf[k].g) >= 0) continue;
+                int in_dt;
+                double ext;
+                if ((s = as_star_facet_extent(sp, &ss->sc, a->rf[k].g, &in_dt, &ext)) !=
+                    ANISTAR_OK)
+                    return s;
+                if (!in_dt || whole || ext <= reach) {
+                    *wrong = 1;
+                    return ANISTAR_OK;
+                }
+                if (ext > need) need = ext;
             }
-            if (ext > need) need = ext;
-        }
-        for (int32_t k = 0; k < sp->nrf; k++) {
-            if (as_star_find(st, sp->rf[k].g) >= 0) continue;
-            int in_dt;
-            double ext;
-            if ((s = as_star_facet_extent(ss->ctx, sp, &ss->sc, sp->rf[k].g, &in_dt, &ext)) !=
-                ANISTAR_OK)
-                return s;
-            if (whole || ext <= reach) {
-                *wrong = 1;
-                return ANISTAR_OK;
-            }
-            if (ext > need) need = ext;
         }
         if (need == 0) return verified(ss, st, reach);
         reach = isfinite(need) ? need * (1 + 1e-6) : diag;
@@ -1118,18 +1109,19 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
      * surface radius r_max (up to the distortion between neighbouring metrics, taken as
      * 2); a site that changes v's surface star lies in a ball through v centred at such
      * an x: within 2 |x - v| <= 4 r_max of v */
-    double rmax = 0;
-    for (int32_t v = ss->first_site; v < ss->n; v++) {
-        const as_star *st = ss->stars[v];
-        for (int32_t k = 0; st && k < st->nrf; k++)
-            if (st->rf[k].r > rmax) rmax = st->rf[k].r;
-    }
-    const double reach = AS_STARSET_VERIFY_REACH * rmax;
+    double reach = -1; /* computed at the first star selected */
     const double diag = 4 * sqrt(3.0) * ss->surf->radius; /* the corner box's diagonal */
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         as_star *st = ss->stars[v];
         if (!st || !AS_STAR_BALL_ZONE(st)) continue;
         if (need && !need(arg, v)) continue;
+        if (reach < 0) {
+            double rmax = 0;
+            for (int32_t u = ss->first_site; u < ss->n; u++)
+                for (int32_t k = 0; ss->stars[u] && k < ss->stars[u]->nrf; k++)
+                    if (ss->stars[u]->rf[k].r > rmax) rmax = ss->stars[u]->rf[k].r;
+            reach = AS_STARSET_VERIFY_REACH * rmax;
+        }
         int wrong = 0;
         if ((s = verify_star(ss, v, reach, diag, &wrong)) != ANISTAR_OK) return s;
         if (!wrong) continue;

@@ -1009,6 +1009,7 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             st->feature_alpha, (unsigned long long)st->feature_halvings);
     fprintf(f, "  \"topology_below_hmin\": %llu,\n  \"sites_unused\": %zu,\n",
             (unsigned long long)st->topology_below_hmin, st->sites_unused);
+    fprintf(f, "  \"stars_delaunay_zone\": %zu,\n", st->stars_delaunay_zone);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
             (unsigned long long)st->pick_valid_tries,
             (unsigned long long)st->pick_valid_failures);

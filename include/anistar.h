@@ -747,6 +747,11 @@ typedef struct anistar_mesh_stats {
                                      uses them, they are not output vertices (a complete
                                      run accepts them; their cells met S only where the
                                      topology rule could not refine above hmin) */
+    size_t stars_delaunay_zone;   /* stars whose surface balls were found not to bound the
+                                     sites that change their restricted facets (S crosses
+                                     their Voronoi cell away from their disk: specks of S
+                                     meshed at hmin); they took their whole Delaunay
+                                     region as their conflict zone */
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);

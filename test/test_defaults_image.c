@@ -7,7 +7,7 @@
 
 static const dcase cases[] = {
     {"skull_2.9.inr", 1, 0, 0, 1},
-    {"brain_t1.mhd", 1, 0, 0, 0},
+    {"brain_t1.mhd", 1, 0, 0, 1},
     {"liver_labels_half.inr", 1, 0, 0, 1},
 };
 

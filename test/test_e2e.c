@@ -283,6 +283,22 @@ static void test_checker_catches_damage(void **state) {
     assert_true(rep.failures >= 4);     /* the stars of a, b, c, d differ */
     memcpy(t0, save0, sizeof save0);
     memcpy(t1, save1, sizeof save1);
+    /* one triangle turned over: the three stars that hold it see it face against its dual
+     * segment (the same vertex sets, so only the orientation test sees it) */
+    {
+        int32_t x = t0[1];
+        t0[1] = t0[2];
+        t0[2] = x;
+        mc_report_init(&rep);
+        mc_check_stars(ctx, s, ss->xyz, ss->first_site, m, &lim, 1, &rep);
+        assert_int_equal(rep.failures, 3);
+        assert_non_null(strstr(rep.first, "faces against its dual segment"));
+        memcpy(t0, save0, sizeof save0);
+        mc_report_init(&rep);
+        mc_check_stars(ctx, s, ss->xyz, ss->first_site, m, &lim, 1, &rep);
+        assert_int_equal(rep.failures, 0);
+        assert_true(rep.orient_tested == 3 * m->nt);
+    }
     /* a vertex of the unit sphere moved off S by 1e-6 */
     for (int k = 0; k < 3; k++) m->xyz[k] *= 1 + 1e-6;
     mc_report_init(&rep);

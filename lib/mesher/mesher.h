@@ -77,6 +77,7 @@ typedef struct as_mesher_counters {
     uint64_t halvings; /* times alpha was halved after failed final checks */
     uint64_t specks;   /* image components below the resolution, not meshed */
     uint64_t topo_below_hmin; /* topology points refused: nearer than hmin to a site */
+    uint64_t zones_opened;    /* stars set to their Delaunay zone (as_starset_verify_zones) */
     double t_init, t_refine, t_output, t_total;
     double estimate_vertices, estimate_bytes;
     int stop_reason; /* anistar_stop_reason */

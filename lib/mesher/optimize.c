@@ -324,6 +324,7 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
     T->insertions_hmax = S->insertions_hmax;
     T->topology_below_hmin = S->topology_below_hmin;
     T->sites_unused = S->sites_unused;
+    T->stars_delaunay_zone = S->stars_delaunay_zone;
     T->stall_max = S->stall_max;
     T->components_below_resolution = S->components_below_resolution;
     T->estimate_vertices = S->estimate_vertices;

@@ -2,6 +2,7 @@
  * output.c — the output mesh: stitching of the surface stars, orientation, statistics
  * (DESIGN.md 4.8, paper 4.1 "stitched together", 6.2 Figures 8 and 10). See mesher.h.
  */
+#include "geom/bvh.h"
 #include "mesher/mesher.h"
 #include "mesher/refine.h"
 
@@ -202,6 +203,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_feature = cnt->cause[AS_CAUSE_FEATURE];
     S->insertions_hmax = cnt->cause[AS_CAUSE_HMAX];
     S->topology_below_hmin = cnt->topo_below_hmin;
+    S->stars_delaunay_zone = (size_t)cnt->zones_opened;
     S->sites_unused = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) S->sites_unused += ss->stars[v]->nrf == 0;
     S->stall_max = cnt->stall_max;
@@ -325,6 +327,86 @@ static anistar_status piece_encloses(anistar_context *ctx, const as_surface *sur
 }
 
 /*
+ * 1 in *yes when a piece of the mesh that bounds no region of its own (piece_encloses)
+ * is cut off from the rest of S only where S is thinner than its resolution: from a
+ * point just inside the piece's own volume, each axis ray that does not meet S within one
+ * and a half diagonals leaves the piece through a triangle that lies within floor of S.
+ * design: a piece closes its volume where S goes on (a neck, the rim of a plate, the
+ * cross-section of a tube). Where S's part is thicker than twice the floor the closing
+ * triangles span it and lie far from S (a fragment the refinement must join to the
+ * rest: the feature size resolves it); where it is thinner, the closing triangles lie
+ * within floor of S and the feature rule, floored there, cannot resolve the part: the
+ * piece is below the resolution, as an edge across such a gap or plate is in check 4.
+ * The piece's volume is its oriented side: the side opposite its triangles' normals
+ * when its signed volume is positive. ptri lists the piece's np triangles.
+ */
+static anistar_status piece_cut_below_floor(anistar_context *ctx, const as_surface *surf,
+                                            const as_trimesh *tm, const int32_t *ptri,
+                                            size_t np, const int32_t *start, const int32_t *inc,
+                                            const double box[6], int32_t v0, double floor_e,
+                                            int *yes) {
+    *yes = 0;
+    const double *o = tm->xyz + 3 * (size_t)v0;
+    double vol = 0, nm[3] = {0, 0, 0};
+    for (size_t i = 0; i < np; i++) {
+        const int32_t *T = tm->tri + 3 * (size_t)ptri[i];
+        double a[3], b[3], c[3];
+        for (int k = 0; k < 3; k++) {
+            a[k] = tm->xyz[3 * (size_t)T[0] + k] - o[k];
+            b[k] = tm->xyz[3 * (size_t)T[1] + k] - o[k];
+            c[k] = tm->xyz[3 * (size_t)T[2] + k] - o[k];
+        }
+        vol += a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) +
+               a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    for (int32_t j = start[v0]; j < start[v0 + 1]; j++) {
+        const int32_t *T = tm->tri + 3 * (size_t)inc[j];
+        const double *a = tm->xyz + 3 * (size_t)T[0], *b = tm->xyz + 3 * (size_t)T[1],
+                     *c = tm->xyz + 3 * (size_t)T[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        nm[0] += u[1] * w[2] - u[2] * w[1];
+        nm[1] += u[2] * w[0] - u[0] * w[2];
+        nm[2] += u[0] * w[1] - u[1] * w[0];
+    }
+    double l = sqrt(nm[0] * nm[0] + nm[1] * nm[1] + nm[2] * nm[2]);
+    if (!(l > 0) || vol == 0) return ANISTAR_OK;
+    const double diag = box_diagonal(box), len = 1.5 * diag, sg = vol > 0 ? -1 : 1;
+    double m[3];
+    for (int k = 0; k < 3; k++) m[k] = o[k] + sg * 1e-3 * diag * nm[k] / l;
+    for (int d = 0; d < 6; d++) {
+        double e[3] = {m[0], m[1], m[2]}, x[3], dir[3] = {0, 0, 0};
+        dir[d >> 1] = (d & 1) ? -len : len;
+        e[d >> 1] += dir[d >> 1];
+        int hit = 0;
+        anistar_status s = as_surface_crossing(ctx, surf, m, e, m, &hit, x);
+        if (s != ANISTAR_OK) return s;
+        if (hit) continue;
+        /* the first triangle of the piece on the ray (the exact contact test of the
+         * segment queries, as_segment_triangle) */
+        double tbest = INFINITY;
+        for (size_t i = 0; i < np; i++) {
+            const int32_t *T = tm->tri + 3 * (size_t)ptri[i];
+            double t;
+            if (as_segment_triangle(m, e, tm->xyz + 3 * (size_t)T[0], tm->xyz + 3 * (size_t)T[1],
+                                    tm->xyz + 3 * (size_t)T[2], &t) != AS_HIT_NONE &&
+                t > 0 && t < tbest)
+                tbest = t;
+        }
+        if (!(tbest <= 1)) return ANISTAR_OK;
+        double p[3], q[3], d2 = 0;
+        for (int k = 0; k < 3; k++) p[k] = m[k] + tbest * dir[k];
+        s = as_surface_project(ctx, surf, p, q);
+        if (s == ANISTAR_ENOSURFACE) return ANISTAR_OK;
+        if (s != ANISTAR_OK) return s;
+        for (int k = 0; k < 3; k++) d2 += (p[k] - q[k]) * (p[k] - q[k]);
+        if (!(d2 <= floor_e * floor_e)) return ANISTAR_OK;
+    }
+    *yes = 1;
+    return ANISTAR_OK;
+}
+
+/*
  * design:
  *  1. every site's star is one closed fan (the topology rule's invariant at the end);
  *  2. the mesh is non-empty and, by as_topology_check, a closed 2-manifold;
@@ -416,6 +498,8 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     double *cbox = NULL;     /* per component: its box, lo[3] hi[3] */
     int32_t *sc_out = NULL;  /* per sample component: its output component, -1 none */
     uint8_t *split = NULL;   /* per sample component: its sites are in two pieces or more */
+    int32_t *pstart = NULL;  /* per component: its first triangle in ptri (built on demand) */
+    int32_t *ptri = NULL;    /* triangles sorted by component */
     s = ANISTAR_OK;
     if (!start || !inc || !uf || !queue || !flip || !tcomp || !vmap) goto nomem;
     /* vertex -> triangles (CSR) and components */
@@ -691,6 +775,27 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                 if (cs[oc] < 0) m->stats.components_found++;
                 continue;
             }
+            if (!ptri) {
+                /* the triangles of each piece (counting sort by component), once */
+                pstart = as_alloc_array(ctx, ncomp + 1, sizeof *pstart);
+                ptri = as_alloc_array(ctx, nt, sizeof *ptri);
+                if (!pstart || !ptri) goto nomem;
+                memset(pstart, 0, (ncomp + 1) * sizeof *pstart);
+                for (size_t t = 0; t < nt; t++) pstart[tcomp[t] + 1]++;
+                for (size_t c = 0; c < ncomp; c++) pstart[c + 1] += pstart[c];
+                for (size_t t = 0; t < nt; t++) ptri[pstart[tcomp[t]]++] = (int32_t)t;
+                for (size_t c = ncomp; c > 0; c--) pstart[c] = pstart[c - 1];
+                pstart[0] = 0;
+            }
+            if ((s = piece_cut_below_floor(ctx, ss->surf, tm, ptri + pstart[oc],
+                                           (size_t)(pstart[oc + 1] - pstart[oc]), start, inc,
+                                           cbox + 6 * oc, cvert[oc], ss->feat.floor_e, &yes)) !=
+                ANISTAR_OK)
+                goto done;
+            if (yes) {
+                m->stats.pieces_below_resolution++;
+                continue;
+            }
         }
         if (!*sig) {
             *sig = AS_CERT_PIECE | (uint64_t)oc;
@@ -743,5 +848,7 @@ done:
     as_free(ctx, cbox, cap_c * 6 * sizeof *cbox);
     as_free(ctx, sc_out, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *sc_out);
     as_free(ctx, split, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *split);
+    if (pstart) as_free(ctx, pstart, (ncomp + 1) * sizeof *pstart);
+    if (ptri) as_free(ctx, ptri, nt * sizeof *ptri);
     return s;
 }

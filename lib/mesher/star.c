@@ -328,11 +328,57 @@ static void tet_sphere(const double *const *q, const double V[3], double S[4]) {
     S[3] = isfinite(R) ? R * R : -2; /* -2: a center, no usable bound */
 }
 
+/* The box of the conflict zone (see as_star_rezone in star.h). */
+void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    const double *V = st->d ? as_del3_point(st->d, st->vloc) : st->fv;
+    if (AS_STAR_BALL_ZONE(st)) {
+        /* design: the surface balls in the stretched frame, and one ball around F_v v
+         * holding them all, so that most candidates are rejected by one distance */
+        double zr = 0;
+        for (int32_t i = 0; i < st->nrf; i++) {
+            double z[4], dd[3];
+            as_star_zone_ball(mf, &st->rf[i], z);
+            sub3(z, V, dd);
+            double e = sqrt(dot3(dd, dd)) + z[3];
+            if (e > zr) zr = e;
+        }
+        zr *= 1 + 4 * AS_STAR_SLACK;
+        st->zr2 = zr * zr;
+        for (int32_t i = 0; i < st->nrf; i++) {
+            double h[3];
+            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
+            box_add(lo, hi, st->rf[i].c, h);
+        }
+    } else {
+        for (int32_t k = 0; k < st->nitet; k++) {
+            double S[4], x[3], h[3], dd[3];
+            /* open: the update's spheres; packed: recomputed (the same numbers) */
+            if (st->d)
+                memcpy(S, inc_sphere(st, k), sizeof S);
+            else
+                as_star_sphere(st, xyz, mf, k, S);
+            if (S[3] == -1) continue; /* infinite */
+            sub3(S, V, dd);
+            double R = sqrt(dot3(dd, dd));
+            as_metric_unapply(mf, S, x);
+            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
+            box_add(lo, hi, x, h);
+        }
+    }
+    for (int k = 0; k < 3; k++) {
+        double pad = AS_STAR_SLACK * (fabs(lo[k]) + fabs(hi[k]) + (hi[k] - lo[k]));
+        st->lo[k] = lo[k] - pad;
+        st->hi[k] = hi[k] + pad;
+    }
+}
+
 /* Recompute restricted facets, closed flag and box after the del3 changed. */
 static anistar_status star_update(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                   as_star_scratch *sc) {
     anistar_context *ctx = env->ctx;
     anistar_status s;
+    st->version++;
     /* keep the old facets for center reuse and for the caller's diff */
     if ((s = grow_rf(ctx, &sc->old, &sc->cap_old, st->nrf)) != ANISTAR_OK) return s;
     if (st->nrf) memcpy(sc->old, st->rf, (size_t)st->nrf * sizeof *st->rf);
@@ -444,46 +490,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         st->rf[j + 1] = x;
     }
     st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
-
-    /* box of the conflict zone */
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    if (st->closed) {
-        /* design: the surface balls in the stretched frame, and one ball around F_v v
-         * holding them all, so that most candidates are rejected by one distance */
-        const double *V = as_del3_point(d, st->vloc);
-        double zr = 0;
-        for (int32_t i = 0; i < st->nrf; i++) {
-            double z[4], dd[3];
-            as_star_zone_ball(mf, &st->rf[i], z);
-            sub3(z, V, dd);
-            double e = sqrt(dot3(dd, dd)) + z[3];
-            if (e > zr) zr = e;
-        }
-        zr *= 1 + 4 * AS_STAR_SLACK;
-        st->zr2 = zr * zr;
-        for (int32_t i = 0; i < st->nrf; i++) {
-            double h[3];
-            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
-            box_add(lo, hi, st->rf[i].c, h);
-        }
-    } else {
-        const double *V = as_del3_point(d, st->vloc);
-        for (int32_t k = 0; k < st->nitet; k++) {
-            const double *cc = inc_sphere(st, k);
-            double x[3], h[3], dd[3];
-            if (cc[3] == -1) continue; /* infinite */
-            sub3(cc, V, dd);
-            double R = sqrt(dot3(dd, dd));
-            as_metric_unapply(mf, cc, x);
-            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
-            box_add(lo, hi, x, h);
-        }
-    }
-    for (int k = 0; k < 3; k++) {
-        double pad = AS_STAR_SLACK * (fabs(lo[k]) + fabs(hi[k]) + (hi[k] - lo[k]));
-        st->lo[k] = lo[k] - pad;
-        st->hi[k] = hi[k] + pad;
-    }
+    as_star_rezone(st, env->xyz, mf);
     /* the fresh marks served this update */
     for (int32_t t = 0; t < d->nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
     return ANISTAR_OK;
@@ -1090,27 +1097,11 @@ void as_star_sphere(const as_star *st, const double *xyz, const as_metric_frame 
     tet_sphere(inf ? NULL : q, V, S);
 }
 
-int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
-                      const double p[3], int64_t gid, int32_t *hint) {
-    double y[3];
-    as_metric_apply(mf, p, y);
+/* The exact Delaunay conflict of y = F_v p (global id gid) with a tet around v (open or
+ * packed star). */
+static int conflicts_at(const as_star *st, const double *xyz, const as_metric_frame *mf,
+                        const double y[3], int64_t gid, int32_t *hint) {
     const as_del3 *d = st->d; /* NULL: packed (the usual case) */
-    if (st->closed) {
-        /* design: a site outside every inflated surface ball leaves the surface star
-         * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
-        const double *V = d ? as_del3_point(d, st->vloc) : st->fv;
-        double dd[3];
-        sub3(y, V, dd);
-        if (!(dot3(dd, dd) < st->zr2)) return 0;
-        int near = 0;
-        for (int32_t i = 0; i < st->nrf && !near; i++) {
-            double z[4];
-            as_star_zone_ball(mf, &st->rf[i], z);
-            sub3(y, z, dd);
-            near = dot3(dd, dd) < z[3] * z[3];
-        }
-        if (!near) return 0;
-    }
     double w[3]; /* y - F_v v: the float balls' frame */
     sub3(y, st->fv, w);
     for (int32_t i = 0; i < st->nitet; i++) {
@@ -1136,4 +1127,72 @@ int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double
         }
     }
     return 0;
+}
+
+int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
+                      const double p[3], int64_t gid, int32_t *hint) {
+    double y[3];
+    as_metric_apply(mf, p, y);
+    if (AS_STAR_BALL_ZONE(st)) {
+        /* design: a site outside every inflated surface ball leaves the surface star
+         * unchanged (paper 5.3): a filter in the stretched frame, then the exact test */
+        const double *V = st->d ? as_del3_point(st->d, st->vloc) : st->fv;
+        double dd[3];
+        sub3(y, V, dd);
+        if (!(dot3(dd, dd) < st->zr2)) return 0;
+        int near = 0;
+        for (int32_t i = 0; i < st->nrf && !near; i++) {
+            double z[4];
+            as_star_zone_ball(mf, &st->rf[i], z);
+            sub3(y, z, dd);
+            near = dot3(dd, dd) < z[3] * z[3];
+        }
+        if (!near) return 0;
+    }
+    return conflicts_at(st, xyz, mf, y, gid, hint);
+}
+
+int as_star_conflicts_delaunay(const as_star *st, const as_metric_frame *mf, const double *xyz,
+                               const double p[3], int64_t gid, int32_t *hint) {
+    double y[3];
+    as_metric_apply(mf, p, y);
+    return conflicts_at(st, xyz, mf, y, gid, hint);
+}
+
+/* design: unpacked for the walk around v (a few stars per final check), packed again */
+anistar_status as_star_facet_extent(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                                    as_star_scratch *sc, const as_gid g[3], int *in_dt,
+                                    double *ext) {
+    *in_dt = 0;
+    *ext = INFINITY;
+    anistar_status s = star_open(env, st, mf, sc, 1);
+    if (s != ANISTAR_OK) return s;
+    as_del3 *d = st->d;
+    s = as_del3_vertex_facets(d, st->vloc, &sc->faces);
+    const double *V = as_del3_point(d, st->vloc);
+    for (size_t k = 0; s == ANISTAR_OK && k < sc->faces.n; k++) {
+        int32_t face = sc->faces.a[k], t1 = face >> 2, n = 0;
+        as_gid h[3];
+        for (int j = 0; j < 4; j++)
+            if (j != (face & 3)) h[n++] = (as_gid)d->gid[as_del3_tet_vertex(d, t1, j)];
+        sort3(h);
+        if (h[0] != g[0] || h[1] != g[1] || h[2] != g[2]) continue;
+        *in_dt = 1;
+        int32_t t[2] = {t1, as_del3_mirror(d, face) >> 2};
+        double e = 0;
+        int inf = 0;
+        for (int q = 0; q < 2 && !inf; q++) {
+            double cc[3], dd[3];
+            if (as_del3_circumcenter(d, t[q], cc) != 0) {
+                inf = 1; /* infinite: +inf */
+                break;
+            }
+            sub3(cc, V, dd);
+            double R = sqrt(dot3(dd, dd));
+            if (R > e) e = R;
+        }
+        if (!inf) *ext = 2 * e * (1 + 1e-9);
+        break;
+    }
+    return star_done(env, st, sc, s);
 }

@@ -100,6 +100,13 @@ typedef struct as_star {
     int32_t nrf, cap_rf;
     int closed;         /* the restricted facets form one closed fan around v */
     uint8_t topo_queued;/* the refiner's topology queue holds this star */
+    uint32_t version;   /* incremented by every change of the triangulation */
+    uint32_t vz_version;/* as_starset_verify_zones found the star right at this version, */
+    int32_t vz_n;       /* with the sites below this id, */
+    double vz_reach;    /* within this reach (0: never verified) */
+    uint8_t zfull;      /* its zone is its whole Delaunay region even when closed: the
+                           surface-ball zone was found to miss a site that changes its
+                           restricted facets (as_starset_verify_zones) */
     int32_t nv_base;    /* nv after the last (re)build: compaction trigger */
     int32_t *itet;      /* the live tets incident to v (after the last update) */
     int32_t nitet, cap_itet;
@@ -223,15 +230,36 @@ static inline void as_star_zone_ball(const as_metric_frame *mf, const as_rfacet 
     z[3] = f->r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
 }
 
+/* 1 if st's conflict zone is the union of its inflated surface balls (paper 5.3): a
+ * closed star not marked zfull. Otherwise its zone is its whole Delaunay region (the
+ * union of the circumballs of its tets around v). */
+#define AS_STAR_BALL_ZONE(st) ((st)->closed && !(st)->zfull)
+
 /*
  * 1 if inserting the point p (global id gid, not in the star) may change star st's
  * surface star (DESIGN.md 4.4): p is in conflict (exact insphere) with a tet incident to
- * v, and, if st is closed, p lies in some inflated surface ball
+ * v, and, if AS_STAR_BALL_ZONE(st), p lies in some inflated surface ball
  * (|F_v(c - p)| < AS_STAR_ZONE_INFLATE r). 0 otherwise. *hint (optional) receives the
  * tet found in conflict: the start of the walk when p is then inserted (st->hint).
  */
 int as_star_conflicts(const as_star *st, const as_metric_frame *mf, const double *xyz,
                       const double p[3], int64_t gid, int32_t *hint);
+/* 1 if p (global id gid, not in the star) is in conflict (exact insphere) with a tet
+ * incident to v, whatever the zone: p changes v's Delaunay star. */
+int as_star_conflicts_delaunay(const as_star *st, const as_metric_frame *mf, const double *xyz,
+                               const double p[3], int64_t gid, int32_t *hint);
+/* Recompute st's zone box (st->lo, st->hi, and zr2 of a ball zone) from its current
+ * facets and tets (packed: their spheres recomputed), after st->zfull changed. */
+void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf);
+
+/* Whether the facet with sorted ids g (incident to v) is a facet of st's triangulation
+ * (*in_dt), and then its extent *ext: twice the larger distance (stretched frame) from v
+ * to the circumcenters of its two tets, so that both circumballs lie in the ball of
+ * radius *ext around v (+inf when a tet is infinite or the facet is absent). The star is
+ * unpacked into sc for the walk and packed again. OK or ENOMEM. */
+anistar_status as_star_facet_extent(const as_star_env *env, as_star *st, const as_metric_frame *mf,
+                                    as_star_scratch *sc, const as_gid g[3], int *in_dt,
+                                    double *ext);
 
 /* The vertices of a packed star: their count, global ids and stored (stretched) points
  * (y = F_v q: xyz is every point by global id, mf the star's frame). */

@@ -178,6 +178,17 @@ anistar_status as_starset_add_poles(as_starset *ss, const double *smp, int32_t n
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid);
 
 /*
+ * Check every star on the ball zone (AS_STAR_BALL_ZONE) for which need(arg, v) is nonzero
+ * (every one when need is NULL) against the sites that conflict with it within a reach
+ * of 4 r_max, deepened until each difference is decided; a star whose restricted facets
+ * differ keeps its whole Delaunay region as its zone from then on (zfull), is regrown, and
+ * its changes go to the facet table and the events. *opened: how many. OK, ENOMEM,
+ * EINTERNAL. See the design note in starset.c.
+ */
+anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
+                                       size_t *opened);
+
+/*
  * Simulate p's star without changing anything: fills ss->spare with the star p would
  * get (p given the provisional id ss->n, its frame *mf). Used by Pick_valid.
  */

@@ -85,8 +85,9 @@ void dc_run_case(const dcase *c, int *certified) {
         mc_check_stars(ctx, s, ss->xyz, ss->first_site, &mesh->tm, &lim, 1, &rep);
         mc_assert_ok(&rep, c->file);
         print_message("defaults %-22s certified  %7zu V %5.1f s (checks %.1f s, %zu unused "
-                      "sites)\n",
-                      c->file, mesh->tm.nv, t1 - t0, now() - t1, S->sites_unused);
+                      "sites, %zu of %zu triangles unresolved, %zu speck crossings)\n",
+                      c->file, mesh->tm.nv, t1 - t0, now() - t1, S->sites_unused,
+                      rep.orient_unresolved, mesh->tm.nt, rep.specks_unsampled);
         (*certified)++;
     }
     if (ss) {

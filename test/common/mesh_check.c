@@ -197,10 +197,14 @@ void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_tri
         if (!(d <= lim->on_tol))
             mc_fail(r, "vertex %zu: distance %g to its projection on S > %g", i, d, lim->on_tol);
     }
-    /* outward: each triangle's normal against S's outward normal at the projection of
-     * its centroid; at least 99% must agree (a coarse triangle across a fold of S may
-     * project where S faces elsewhere), and a consistently oriented component facing
-     * inward would fail them all */
+    /* outward, as fidelity: each triangle's normal against S's outward normal at the
+     * projection of its centroid, on the triangles over which S is resolved (S's normals
+     * at its three vertices pairwise within 90 degrees; below the surface's resolution -
+     * the noise of a head scan at its voxel size - they are not, and nothing is asked
+     * there); at least 99% must agree (a coarse triangle across a fold of S may project
+     * where S faces elsewhere), and a consistently oriented component facing inward would
+     * fail them all. The exact orientation test, every triangle against its dual segment,
+     * is in the star check. */
     size_t agree = 0, tested = 0;
     for (size_t t = 0; t < m->nt; t++) {
         const double *a = m->xyz + 3 * (size_t)m->tri[3 * t],
@@ -218,6 +222,22 @@ void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_tri
             return;
         }
         if (sing || !(dot3(n, n) > 0)) continue;
+        const double *P[3] = {a, b, c};
+        double nv[3][3];
+        int resolved = 1;
+        for (int k = 0; k < 3 && resolved; k++) {
+            int sg = 0;
+            if (as_surface_normal_at(ctx, s, P[k], nv[k], &sg) != ANISTAR_OK) {
+                mc_fail(r, "triangle %zu: surface normal failed: %s", t, anistar_last_error(ctx));
+                return;
+            }
+            if (sg) resolved = 0;
+        }
+        if (!resolved || !(dot3(nv[0], nv[1]) > 0 && dot3(nv[1], nv[2]) > 0 &&
+                           dot3(nv[2], nv[0]) > 0)) {
+            r->orient_unresolved++;
+            continue;
+        }
         tested++;
         agree += dot3(n, ns) > 0;
     }
@@ -274,7 +294,8 @@ typedef struct star_work {
     double *sel;          /* 3 npts: the points triangulated */
     int64_t *gid;         /* their global ids */
     int32_t *vx;          /* their del3 vertices */
-    int32_t *found;       /* 3 per restricted facet */
+    int32_t *found;       /* 4 per restricted facet: sorted global ids, index into fdir */
+    double *fdir;         /* 3 per restricted facet: its dual segment, inside end to outside */
     size_t cap_found;
     double *balls;        /* 4 per tet around the vertex: circumcenter, squared radius */
     size_t cap_balls;
@@ -331,6 +352,80 @@ static int32_t rebuild(anistar_context *ctx, star_work *w, int32_t nextra, size_
     return w->vx[me];
 }
 
+/*
+ * Whether x (on S) lies on an unsampled speck: a closed piece of S that fits in the box of
+ * half-side 2.125 hmin around x and holds no output vertex. The contract leaves such
+ * pieces out (below the surface's resolution, hmin; docs/algorithm.md, "At the surface's
+ * resolution"), and a restricted facet whose dual segment crosses one has no vertex on
+ * it. design: the signs of S's function on a grid of spacing hmin/4, x at a cell's
+ * centre; from the corners of that cell of each sign, a flood over the nodes of that sign;
+ * a side whose flood never reaches the box's boundary is enclosed by S within the box; a
+ * speck when no output vertex lies in the box of the flood (grown by a cell). Pieces
+ * thinner than the grid are below the resolution as well.
+ */
+#define SPECK_N 18
+static int unsampled_speck(anistar_context *ctx, const as_surface *s, star_work *w,
+                           const double x[3], double hmin, int *bsign, double blo[3],
+                           double bhi[3]) {
+    if (!(hmin > 0)) return 0;
+    enum { N = SPECK_N };
+    const double h = hmin / 4;
+    double lo[3];
+    for (int k = 0; k < 3; k++) lo[k] = x[k] - (N / 2 - 0.5) * h;
+    signed char sg[N * N * N];
+    for (int a = 0; a < N; a++)
+        for (int b = 0; b < N; b++)
+            for (int c = 0; c < N; c++) {
+                double p[3] = {lo[0] + a * h, lo[1] + b * h, lo[2] + c * h};
+                int side;
+                if (as_surface_side(ctx, s, p, &side) != ANISTAR_OK) return 0;
+                sg[(a * N + b) * N + c] = (signed char)(side < 0 ? -1 : 1);
+            }
+    int queue[N * N * N];
+    unsigned char seen[N * N * N];
+    for (int sign = -1; sign <= 1; sign += 2) {
+        memset(seen, 0, sizeof seen);
+        int nq = 0, open = 0;
+        int bl[3] = {N, N, N}, bh[3] = {-1, -1, -1};
+        for (int cn = 0; cn < 8; cn++) {
+            int id = ((N / 2 - 1 + (cn & 1)) * N + (N / 2 - 1 + ((cn >> 1) & 1))) * N +
+                     (N / 2 - 1 + ((cn >> 2) & 1));
+            if (sg[id] == sign && !seen[id]) {
+                seen[id] = 1;
+                queue[nq++] = id;
+            }
+        }
+        if (nq == 0) continue;
+        for (int q = 0; q < nq && !open; q++) {
+            int id = queue[q], ix[3] = {id / (N * N), (id / N) % N, id % N};
+            for (int k = 0; k < 3; k++) {
+                if (ix[k] == 0 || ix[k] == N - 1) open = 1;
+                if (ix[k] < bl[k]) bl[k] = ix[k];
+                if (ix[k] > bh[k]) bh[k] = ix[k];
+            }
+            for (int k = 0; k < 3 && !open; k++)
+                for (int dlt = -1; dlt <= 1; dlt += 2) {
+                    int jx[3] = {ix[0], ix[1], ix[2]};
+                    jx[k] += dlt;
+                    int j = (jx[0] * N + jx[1]) * N + jx[2];
+                    if (sg[j] == sign && !seen[j]) {
+                        seen[j] = 1;
+                        queue[nq++] = j;
+                    }
+                }
+        }
+        if (open) continue;
+        *bsign = sign;
+        for (int k = 0; k < 3; k++) {
+            blo[k] = lo[k] + (bl[k] - 1) * h;
+            bhi[k] = lo[k] + (bh[k] + 1) * h;
+        }
+        if (as_kdtree_box_any(ctx, w->kd, blo, bhi, 0, &w->ids) != ANISTAR_OK) return 0;
+        if (w->ids.n == 0) return 1;
+    }
+    return 0;
+}
+
 /* Check the star of output vertex i (see mesh_check.h). */
 static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, int32_t nextra,
                       const as_trimesh *m, const int32_t *vt_start, const int32_t *vt_tris,
@@ -345,17 +440,31 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
     double yi[3];
     as_metric_apply(&mf, m->xyz + 3 * i, yi);
     const double *xi = m->xyz + 3 * i;
-    /* every extra site (the box corners and the poles bound the balls: without them the
-     * balls toward the far side reach across the whole mesh), then the 48 M-nearest
-     * vertices: the 48 Euclidean-nearest are within M distance ub, so the box of the
-     * M-ball of radius ub holds the 48 M-nearest */
+    /* the eight box corners (extra sites 0-7: they enclose every point, so every tet
+     * around i is finite) and the 16 M-nearest poles (they bound the balls on both sides
+     * of S: without poles the balls toward the far side reach across the whole mesh),
+     * then the 48 M-nearest vertices: the 48 Euclidean-nearest are within M distance ub,
+     * so the box of the M-ball of radius ub holds the 48 M-nearest. The other poles join
+     * like the vertices, when one lies in a ball (a scan of them each round): starting
+     * with all 256 made every rebuild a triangulation of some 300 points, most of the
+     * checks' time */
+    const int32_t ncorner = nextra < 8 ? nextra : 8;
+    const size_t npole = (size_t)(nextra - ncorner), kp = npole < 16 ? npole : 16;
     const size_t nvert = m->nv, kv = nvert < 48 ? nvert : 48;
-    size_t k = (size_t)nextra + kv;
+    size_t k = (size_t)ncorner + kp + kv;
     {
-        for (int32_t e = 0; e < nextra; e++) {
+        for (int32_t e = 0; e < ncorner; e++) {
             w->order[e] = e;
             w->mark[e] = (int64_t)i;
         }
+        int32_t *pc = w->order + ncorner;
+        for (size_t q = 0; q < npole; q++) {
+            int32_t j = ncorner + (int32_t)q;
+            w->dist2[j] = mdist2(&mf, w, (size_t)j, yi);
+            pc[q] = j;
+        }
+        select_k(pc, w->dist2, npole, kp);
+        for (size_t q = 0; q < kp; q++) w->mark[pc[q]] = (int64_t)i;
         int32_t kid[48];
         double kd2[48], ub = 0;
         size_t got = as_kdtree_knn(w->kd, xi, kv, kid, kd2);
@@ -366,7 +475,7 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         }
         ball_candidates(ctx, w, &mf, xi, sqrt(ub));
         size_t nc = 0;
-        int32_t *cand = w->order + nextra;
+        int32_t *cand = w->order + ncorner + kp;
         for (size_t q = 0; q < w->ids.n; q++) {
             int32_t j = w->ids.ids[q];
             w->dist2[j] = mdist2(&mf, w, (size_t)j, yi);
@@ -430,8 +539,9 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
          * perturbation is unique), then the certificate is checked again */
         size_t nviol = 0;
         ball_candidates(ctx, w, &mf, xi, sqrt(reach));
-        for (size_t q = 0; q < w->ids.n; q++) {
-            int32_t j = w->ids.ids[q];
+        /* the candidates: the vertices in the box of the reach, then the poles left out */
+        for (size_t q = 0; q < w->ids.n + (size_t)(nextra - ncorner); q++) {
+            int32_t j = q < w->ids.n ? w->ids.ids[q] : ncorner + (int32_t)(q - w->ids.n);
             if (w->mark[j] == (int64_t)i) continue;
             double d2 = mdist2(&mf, w, (size_t)j, yi);
             if (d2 > reach * (1 + 1e-9)) continue;
@@ -491,10 +601,15 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         if (in[0] == in[1]) continue;
         if (nf == w->cap_found) {
             w->cap_found *= 2;
-            w->found = realloc(w->found, 3 * w->cap_found * sizeof *w->found);
+            w->found = realloc(w->found, 4 * w->cap_found * sizeof *w->found);
+            w->fdir = realloc(w->fdir, 3 * w->cap_found * sizeof *w->fdir);
             assert_non_null(w->found);
+            assert_non_null(w->fdir);
         }
-        int32_t *g = w->found + 3 * nf++, lv[3];
+        int32_t *g = w->found + 4 * nf, lv[3];
+        g[3] = (int32_t)nf;
+        for (int h = 0; h < 3; h++) w->fdir[3 * nf + (size_t)h] = c[in[0] ? 1 : 0][h] - c[in[0] ? 0 : 1][h];
+        nf++;
         int n = 0;
         for (int j = 0; j < 4; j++)
             if (j != (f & 3)) {
@@ -516,7 +631,6 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             continue;
         }
         double rad = as_metric_dist(&mf, x, m->xyz + 3 * i);
-        if (rad > r->r_max) r->r_max = rad;
         int held = 0;
         for (int h = 0; h < 3 && lim->hmin > 0; h++) {
             if (g[h] < (int32_t)nextra) continue;
@@ -524,18 +638,58 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             sub3(x, m->xyz + 3 * (size_t)(g[h] - (int32_t)nextra), e);
             if (dot3(e, e) < lim->hmin * lim->hmin * (1 + 1e-9)) held = 1;
         }
+        /* a facet with a corner or a pole, or too large, whose crossing is on a speck of S
+         * that no vertex samples (below the resolution): when an end of its dual segment
+         * is inside the speck, the speck alone makes it restricted and it is left out;
+         * otherwise the segment passes through the speck (two crossings) and crosses S
+         * elsewhere too, so the facet stays but this crossing does not size it */
+        int bsign;
+        double blo[3], bhi[3];
+        if ((g[0] < (int32_t)nextra || (!held && !(rad < lim->r0 * (1 + 1e-9)))) &&
+            unsampled_speck(ctx, s, w, x, lim->hmin, &bsign, blo, bhi)) {
+            int end_in = 0;
+            for (int h = 0; h < 2; h++) {
+                int inbox = 1;
+                for (int k = 0; k < 3; k++)
+                    if (!(c[h][k] >= blo[k] && c[h][k] <= bhi[k])) inbox = 0;
+                if (inbox && (in[h] ? -1 : 1) == bsign) end_in = 1;
+            }
+            r->specks_unsampled++;
+            if (end_in) {
+                nf--;
+                continue;
+            }
+            held = 1;
+        }
+        if (rad > r->r_max) r->r_max = rad;
         if (!held && !(rad < lim->r0 * (1 + 1e-9)))
-            mc_fail(r, "vertex %zu: facet (%d %d %d) has surface circumradius %.17g >= r0 %g",
-                    i, g[0], g[1], g[2], rad, lim->r0);
+            mc_fail(r, "vertex %zu: facet (%d %d %d) has surface circumradius %.17g >= r0 %g at (%.9g, %.9g, %.9g)",
+                    i, g[0], g[1], g[2], rad, lim->r0, x[0], x[1], x[2]);
     }
-    qsort(w->found, nf, 3 * sizeof *w->found, cmp_tri);
+    qsort(w->found, nf, 4 * sizeof *w->found, cmp_tri);
     /* the output triangles incident to i, as sorted global ids */
     size_t no = (size_t)(vt_start[i + 1] - vt_start[i]);
     int same = no == nf;
     for (size_t q = 0; same && q < no; q++)
-        if (memcmp(sorted_tris + 3 * (size_t)vt_tris[vt_start[i] + (int32_t)q], w->found + 3 * q,
+        if (memcmp(sorted_tris + 4 * (size_t)vt_tris[vt_start[i] + (int32_t)q], w->found + 4 * q,
                    3 * sizeof(int32_t)) != 0)
             same = 0;
+    /* orientation: each output triangle's normal points along its dual segment from the
+     * end inside S to the end outside (a linear map with positive determinant, the
+     * metric's square root, keeps the sign of that product) */
+    for (size_t q = 0; same && q < no; q++) {
+        const int32_t *st = sorted_tris + 4 * (size_t)vt_tris[vt_start[i] + (int32_t)q];
+        int32_t o[3] = {st[0], st[3] ? st[2] : st[1], st[3] ? st[1] : st[2]};
+        double u[3], v[3], n[3];
+        sub3(w->pts + 3 * (size_t)o[1], w->pts + 3 * (size_t)o[0], u);
+        sub3(w->pts + 3 * (size_t)o[2], w->pts + 3 * (size_t)o[0], v);
+        cross3(u, v, n);
+        const double *dir = w->fdir + 3 * (size_t)w->found[4 * q + 3];
+        r->orient_tested++;
+        if (!(dot3(n, dir) > 0))
+            mc_fail(r, "vertex %zu: triangle (%d %d %d) faces against its dual segment (from "
+                       "inside S to outside)", i, o[0], o[1], o[2]);
+    }
     if (!same)
         mc_fail(r, "vertex %zu: its restricted Delaunay star has %zu facets, the output %zu "
                    "triangles, and they differ", i, nf, no);
@@ -560,7 +714,8 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     w.gid = xmalloc((size_t)w.npts * sizeof *w.gid);
     w.vx = xmalloc((size_t)w.npts * sizeof *w.vx);
     w.cap_found = 64;
-    w.found = xmalloc(3 * w.cap_found * sizeof *w.found);
+    w.found = xmalloc(4 * w.cap_found * sizeof *w.found);
+    w.fdir = xmalloc(3 * w.cap_found * sizeof *w.fdir);
     w.cap_balls = 64;
     w.balls = xmalloc(4 * w.cap_balls * sizeof *w.balls);
     w.kd = NULL;
@@ -573,22 +728,34 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     for (int32_t j = 0; j < w.npts; j++) w.mark[j] = -1;
     /* output triangles as sorted global-id triples, sorted; vertex -> triangles (CSR) in
      * that order, so each vertex's list comes out sorted */
-    int32_t *tris = xmalloc(3 * nt * sizeof *tris);
+    int32_t *tris = xmalloc(4 * nt * sizeof *tris);
     for (size_t t = 0; t < nt; t++) {
-        for (int k = 0; k < 3; k++) tris[3 * t + k] = m->tri[3 * t + k] + nextra;
-        sort3(tris + 3 * t);
+        /* sorted ids and the parity of the sort (1: the output order is odd) */
+        int32_t *x = tris + 4 * t;
+        for (int k = 0; k < 3; k++) x[k] = m->tri[3 * t + k] + nextra;
+        int swaps = 0;
+        for (int a = 0; a < 3; a++)
+            for (int b = a + 1; b < 3; b++)
+                if (x[b] < x[a]) {
+                    int32_t y = x[a];
+                    x[a] = x[b];
+                    x[b] = y;
+                    swaps++;
+                }
+        x[3] = swaps & 1;
     }
-    qsort(tris, nt, 3 * sizeof *tris, cmp_tri);
+    qsort(tris, nt, 4 * sizeof *tris, cmp_tri);
     int32_t *start = calloc(nv + 1, sizeof *start);
     int32_t *fill = calloc(nv + 1, sizeof *fill);
     int32_t *vt = xmalloc(3 * nt * sizeof *vt);
     assert_non_null(start);
     assert_non_null(fill);
-    for (size_t q = 0; q < 3 * nt; q++) start[tris[q] - nextra + 1]++;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) start[tris[4 * t + (size_t)k] - nextra + 1]++;
     for (size_t i = 0; i < nv; i++) start[i + 1] += start[i];
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++) {
-            int32_t i = tris[3 * t + k] - nextra;
+            int32_t i = tris[4 * t + (size_t)k] - nextra;
             vt[start[i] + fill[i]++] = (int32_t)t;
         }
     as_del3 d;
@@ -608,6 +775,7 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     free(w.mark);
     free(w.balls);
     free(w.found);
+    free(w.fdir);
     free(w.vx);
     free(w.gid);
     free(w.sel);

@@ -41,6 +41,9 @@ typedef struct mc_report {
     double gamma_max;       /* largest distortion between two vertices of a facet */
     double dist_max;        /* largest distance from a vertex to S (as measured) */
     size_t stars_checked;   /* vertices whose star was rebuilt and compared */
+    size_t orient_tested;   /* (star, triangle) pairs whose orientation was checked against the dual segment */
+    size_t orient_unresolved; /* triangles left out of the outward-normal test: S unresolved over them */
+    size_t specks_unsampled; /* restricted facets left out: their crossing is on a closed speck of S below hmin that no vertex samples */
     size_t stars_full;      /* of which rebuilt from every point (no local certificate) */
     size_t star_points_max; /* most points one local rebuild needed */
 } mc_report;
@@ -58,7 +61,10 @@ void mc_check_topology(anistar_context *ctx, const as_trimesh *m, const mc_limit
 void mc_check_shape(const as_trimesh *m, const mc_limits *lim, mc_report *r);
 
 /* Every vertex on S: for surfaces given by a function, |f| / |grad f| <= lim->on_tol;
- * for every kind, the distance to the surface's own projection of the vertex <= on_tol. */
+ * for every kind, the distance to the surface's own projection of the vertex <= on_tol.
+ * Outward as fidelity: at least 99% of the triangles over which S is resolved (S's
+ * normals at their three vertices pairwise within 90 degrees) face as S's normal at the
+ * projection of their centroid; the others are counted in r->orient_unresolved. */
 void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_trimesh *m,
                          const mc_limits *lim, mc_report *r);
 
@@ -71,7 +77,15 @@ void mc_check_on_surface(anistar_context *ctx, const as_surface *s, const as_tri
  * triangles incident to i. The surface circumradius r_i(tau) of each of its facets (the
  * M_i-distance from i to the crossing of the dual segment with S nearest the facet's
  * circumcenter, as the mesher defines it) must be < r0 (relative slack 1e-9: the
- * crossing is recomputed here, accurate to 1e-12 R, not copied).
+ * crossing is recomputed here, accurate to 1e-12 R, not copied), unless the crossing
+ * lies within hmin of one of the facet's vertices (refinement is held there). Each output
+ * triangle of i's star must face along its dual segment from the end inside S to the end
+ * outside (the exact orientation test; r->orient_tested counts the pairs). Below the
+ * resolution: a facet with a corner or pole, or beyond r0, whose crossing lies on an
+ * unsampled speck (a closed piece of S within 2.125 hmin of it, found by a flood over the
+ * signs of S on a grid of spacing hmin/4, that holds no output vertex) is left out when
+ * an end of its dual segment is inside the speck, and otherwise not sized by that
+ * crossing (r->specks_unsampled counts both): the contract leaves such pieces unmeshed.
  * design: the rebuild is local when that is provably the same: the K nearest output
  * vertices in the M_i distance (K = 48, doubled while needed) plus every extra site are
  * triangulated; when no vertex left out lies in or on the circumball of a tet around i

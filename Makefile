@@ -4,6 +4,7 @@
 #   make check      build and run every test (installs libgmp-dev/libcmocka-dev if missing
 #                   and allowed; otherwise prints the exact command)
 #   make sanitize   the test suite under AddressSanitizer + UndefinedBehaviorSanitizer
+#   make tsan       the threaded paths' tests under ThreadSanitizer
 #   make bench      build and run the benchmarks (library built with -DANISTAR_BENCH)
 #   make demo       run the main job on a built-in example and write its output
 #   make install    PREFIX, DESTDIR, LIBDIR, INCLUDEDIR, BINDIR;  make uninstall
@@ -38,7 +39,7 @@ VARIANT_CFLAGS ?=
 ALL_CFLAGS = $(BASE_CFLAGS) $(CFLAGS) $(VARIANT_CFLAGS)
 ALL_CPPFLAGS = -Iinclude -Ilib -D_POSIX_C_SOURCE=200809L $(CPPFLAGS)
 VARIANT_LDFLAGS ?=
-LDLIBS_LIB := -lm
+LDLIBS_LIB := -lm -lpthread
 
 LIB_SRC := $(sort $(wildcard lib/*.c lib/*/*.c))
 LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
@@ -62,7 +63,7 @@ TOOL := $(BUILD)/anistar
 # Test and bench programs use GMP (exact oracle) and cmocka (runner); the library never.
 TEST_LDLIBS := -lcmocka -lgmp -lm -lpthread
 
-.PHONY: all lib tools examples tests benches check check-deps check-run sanitize bench \
+.PHONY: all lib tools examples tests benches check check-deps check-run sanitize tsan bench \
         demo install uninstall clean
 .DEFAULT_GOAL := all
 # Keep object files of chained rules (examples, tests, benches): no rebuild on every make.
@@ -152,6 +153,16 @@ sanitize: check-deps
 	@ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	    sh test/run.sh build/asan
 
+# ThreadSanitizer on the threaded paths (issue 15): the thread-count test, the mesher's
+# suite (its concurrent contexts) and the tool's (the CLI runs on every online core).
+TSAN_FLAGS := -fsanitize=thread -fno-omit-frame-pointer
+TSAN_TESTS := test_threads test_mesher test_cli_mesh test_cli
+tsan: check-deps
+	@$(MAKE) --no-print-directory BUILD=build/tsan CFLAGS="-O2 -g" \
+	    VARIANT_CFLAGS="$(TSAN_FLAGS)" VARIANT_LDFLAGS="$(TSAN_FLAGS)" all \
+	    $(TSAN_TESTS:%=build/tsan/test/%)
+	@TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" sh test/run.sh build/tsan
+
 # ---- bench ----------------------------------------------------------------------------
 
 bench: check-deps
@@ -180,7 +191,7 @@ install: all
 	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libanistar.so
 	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$(LIBDIR)' 'includedir=$(INCLUDEDIR)' '' \
 	    'Name: anistar' 'Description: anisotropic Delaunay meshes of surfaces' \
-	    'Version: $(VERSION)' 'Libs: -L$${libdir} -lanistar' 'Libs.private: -lm' \
+	    'Version: $(VERSION)' 'Libs: -L$${libdir} -lanistar' 'Libs.private: -lm -lpthread' \
 	    'Cflags: -I$${includedir}' > $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
 	chmod 644 $(DESTDIR)$(PKGCONFIGDIR)/anistar.pc
 	install -m 755 $(TOOL) $(DESTDIR)$(BINDIR)/anistar

@@ -781,10 +781,12 @@ static const struct mesh_param {
     {"--hmin", "hmin", ANISTAR_PARAM_HMIN, 0},
     {"--hmax", "hmax", ANISTAR_PARAM_HMAX, 0},
     {"--aniso-cap", "aniso_cap", ANISTAR_PARAM_ANISO_CAP, 1},
+    {"--threads", "threads", ANISTAR_PARAM_THREADS, 1},
 };
 #define NMESH_PARAMS (sizeof mesh_params / sizeof mesh_params[0])
 #define MAX_OUTPUTS 16
 enum { MESH_SEED = 8 }; /* the index of --seed in mesh_params */
+enum { MESH_THREADS = 14 }; /* the index of --threads in mesh_params */
 
 /* A JSON string on f. */
 static void json_string_to(FILE *f, const char *s) {
@@ -1161,6 +1163,12 @@ static int cmd_mesh(int argc, char **argv) {
         rc = EXIT_ERROR;
         goto done;
     }
+    if (!has_value[MESH_THREADS]) {
+        /* the default: every online core (the output does not depend on it) */
+        long cores = sysconf(_SC_NPROCESSORS_ONLN);
+        value[MESH_THREADS] = cores < 1 ? 1 : cores > 1024 ? 1024 : (double)cores;
+        has_value[MESH_THREADS] = 1;
+    }
     for (size_t j = 0; j < NMESH_PARAMS; j++) {
         if (has_value[j] && anistar_mesher_set(mr, mesh_params[j].key, value[j])) {
             say("%s: %s", mesh_params[j].flag, anistar_last_error(ctx));
@@ -1252,7 +1260,7 @@ static const command commands[] = {
     {"mesh", "mesh SURFACE [--metric SPEC] [--r0 R] [--gamma0 G] [--rho0 P] [--beta B]\n"
              "                 [--delta D] [--approx A] [--max-vertices N] [--max-seconds S]\n"
              "                 [--max-stall N] [--seed N] [--pick-tries N] [--hmin H]\n"
-             "                 [--hmax H] [--aniso-cap 0|1] [--optimize]\n"
+             "                 [--hmax H] [--aniso-cap 0|1] [--threads N] [--optimize]\n"
              "                 [--quiet] [--sol FILE.sol|.solb] [--stats FILE.json]\n"
              "                 -o OUT [-o OUT2 ...]",
      cmd_mesh},
@@ -1291,7 +1299,8 @@ static void help(void) {
            "distortion or shape refinement), hmax 0 (none; longer facets are refined),\n"
            "aniso-cap 1 (the metric's small eigenvalues are raised where its frame turns\n"
            "so fast that gamma0 would cut its facets; not on triangle meshes; 0: the\n"
-           "metric as given).\n"
+           "metric as given), threads: the online cores (the output is the same, byte for\n"
+           "byte, for every thread count).\n"
            "Progress goes to stderr (--quiet: none); SIGINT or SIGTERM stops the run after\n"
            "the insertion in progress and writes every output, as a limit does (status 3);\n"
            "a second signal kills.\n\n"

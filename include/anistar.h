@@ -531,7 +531,7 @@ typedef enum anistar_param {
     ANISTAR_PARAM_HMAX,         /* Euclidean size ceiling, as MMG's hmax: a facet whose
                                    longest edge is longer is refined (rule 1, counted in
                                    stats.insertions_hmax); >= 0, 0 = none (default) */
-    ANISTAR_PARAM_ANISO_CAP     /* 1: the anisotropy that pays: where the metric's
+    ANISTAR_PARAM_ANISO_CAP,    /* 1: the anisotropy that pays: where the metric's
                                    eigenframe turns along S, each small eigenvalue of F is
                                    raised until a facet of the size the metric asks for
                                    keeps its vertices' distortion within gamma0 (the
@@ -539,6 +539,12 @@ typedef enum anistar_param {
                                    for; docs/algorithm.md); no effect on triangle-mesh
                                    surfaces (their normals are piecewise); 0: the metric
                                    as the field gives it; 0 or 1 (default 1) */
+    ANISTAR_PARAM_THREADS       /* threads the run may use, the caller's included; integer
+                                   in [1, 1024] (default 1). The output is the same for
+                                   every count (byte for byte); with more than one, the
+                                   context's allocator and the surface's and metric's
+                                   callbacks are called from several threads at once and
+                                   must be thread-safe (docs/algorithm.md, "Threads") */
 } anistar_param;
 
 /* A mesher for surface s and metric field m (both not owned). */

@@ -268,6 +268,12 @@ ANISTAR_API anistar_status anistar_mesher_set(anistar_mesher *m, anistar_param k
             return as_fail(ctx, ANISTAR_EINVAL, "aniso_cap must be 0 or 1, got %g", value);
         p->aniso_cap = (int32_t)value;
         return ANISTAR_OK;
+    case ANISTAR_PARAM_THREADS:
+        if (!as_api_is_int(value, 1, 1024))
+            return as_fail(ctx, ANISTAR_EINVAL, "threads must be an integer in [1, 1024], got %g",
+                           value);
+        p->threads = (int32_t)value;
+        return ANISTAR_OK;
     case ANISTAR_PARAM_HMIN:
     case ANISTAR_PARAM_HMAX:
         if (!(isfinite(value) && value >= 0))
@@ -300,6 +306,7 @@ ANISTAR_API anistar_status anistar_mesher_get(const anistar_mesher *m, anistar_p
     case ANISTAR_PARAM_HMIN: *value = p->hmin; return ANISTAR_OK;
     case ANISTAR_PARAM_HMAX: *value = p->hmax; return ANISTAR_OK;
     case ANISTAR_PARAM_ANISO_CAP: *value = p->aniso_cap; return ANISTAR_OK;
+    case ANISTAR_PARAM_THREADS: *value = p->threads; return ANISTAR_OK;
     }
     return as_fail(m->ctx, ANISTAR_EINVAL, "anistar_mesher_get: unknown parameter %d", (int)key);
 }

@@ -16,6 +16,7 @@
 
 #include "anistar.h"
 
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -26,8 +27,12 @@ struct anistar_context {
     anistar_status last_status;
     char last_error[AS_ERRMSG_SIZE];
     /* bytes held through as_alloc/as_realloc/as_free, and the most held at once since
-     * peak was last reset (the mesher's memory statistics) */
-    size_t bytes, peak;
+     * peak was last reset (the mesher's memory statistics); atomic: the threads of a
+     * pool (pool.h) count into their owner's */
+    _Atomic size_t bytes, peak;
+    /* a thread's context of a pool: its allocations are counted in owner (NULL: in this
+     * context) */
+    anistar_context *owner;
 };
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -53,8 +58,17 @@ void as_clear_error(anistar_context *ctx);
  * bytes held (callers pass the sizes they allocated with, as the allocator contract
  * requires). */
 static inline void as_count_bytes(anistar_context *ctx, size_t freed, size_t got) {
-    ctx->bytes = ctx->bytes - freed + got;
-    if (ctx->bytes > ctx->peak) ctx->peak = ctx->bytes;
+    anistar_context *c = ctx->owner ? ctx->owner : ctx;
+    if (got >= freed) {
+        size_t d = got - freed;
+        size_t b = atomic_fetch_add_explicit(&c->bytes, d, memory_order_relaxed) + d;
+        size_t p = atomic_load_explicit(&c->peak, memory_order_relaxed);
+        while (b > p && !atomic_compare_exchange_weak_explicit(&c->peak, &p, b, memory_order_relaxed,
+                                                               memory_order_relaxed)) {
+        }
+    } else {
+        atomic_fetch_sub_explicit(&c->bytes, freed - got, memory_order_relaxed);
+    }
 }
 static inline void *as_alloc(anistar_context *ctx, size_t n) {
     if (n == 0) return NULL;

@@ -120,7 +120,8 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
     *vertices = 0;
     *bytes = 0;
     as_point_sample smp;
-    anistar_status s = as_surface_sample(ctx, ss->surf, AS_ESTIMATE_SAMPLE, &smp);
+    anistar_status s = (ss->sampler ? as_sampler_sample(ctx, ss->sampler, AS_ESTIMATE_SAMPLE, &smp)
+                                    : as_surface_sample(ctx, ss->surf, AS_ESTIMATE_SAMPLE, &smp));
     if (s != ANISTAR_OK) return s;
     size_t *count = as_alloc_array(ctx, smp.ncomponents ? smp.ncomponents : 1, sizeof *count);
     if (!count) {

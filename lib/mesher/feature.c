@@ -159,10 +159,12 @@ static anistar_status thin_points(anistar_context *ctx, as_feature *fe, double h
     return ANISTAR_OK;
 }
 
-anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_feature *fe) {
+anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_sampler *sp,
+                                as_feature *fe) {
     memset(fe, 0, sizeof *fe);
     as_point_sample smp;
-    anistar_status s = as_surface_sample(ctx, surf, AS_FEATURE_SAMPLE, &smp);
+    anistar_status s = sp ? as_sampler_sample(ctx, sp, AS_FEATURE_SAMPLE, &smp)
+                          : as_surface_sample(ctx, surf, AS_FEATURE_SAMPLE, &smp);
     if (s != ANISTAR_OK) return s;
     as_kdtree *kd = NULL;
     if ((s = as_kdtree_build(ctx, smp.points, NULL, smp.n, &kd)) != ANISTAR_OK) goto done;

@@ -62,7 +62,8 @@ typedef struct as_feature {
  *     least AS_FEATURE_ANGLE (the ray's crossing counts as a touching point at 180
  *     degrees).
  */
-anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_feature *fe);
+anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_sampler *sp,
+                                as_feature *fe);
 
 void as_feature_free(anistar_context *ctx, as_feature *fe);
 

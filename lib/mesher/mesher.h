@@ -30,6 +30,7 @@ typedef struct as_mesher_params {
     double hmax;            /* Euclidean size ceiling: facets whose longest edge is longer are
                                refined (rule 1); 0: none */
     int32_t aniso_cap;      /* 1: the rotation floor of the metric (starset.c) */
+    int32_t threads;        /* threads of the star set's parallel sections (>= 1) */
     int32_t max_ids;        /* tests: the star set's id limit (0: AS_STARSET_MAX_IDS); the
                                hard limit on sites is 1024 below it */
 } as_mesher_params;

@@ -27,6 +27,7 @@ void as_mesher_params_default(as_mesher_params *p) {
     p->pick_tries = 20; /* design: measured, see docs/algorithm.md §9 (Pick_valid) */
     p->optimize = 0;
     p->aniso_cap = 1;
+    p->threads = 1;
 }
 
 /* ---- queues ------------------------------------------------------------------------- */
@@ -114,8 +115,12 @@ int as_facet_below_hmin(const as_starset *ss, const as_rfacet *f) {
     return 0;
 }
 
-double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
-                          const as_rfacet *f, int *cause, anistar_status *err) {
+/* Rule 1 without its feature-size part (which reads and fills the star set's lfs cache):
+ * nothing but f, the points and frames, and the surface (ctx takes a projection's error).
+ * The threads of drain run it. */
+static double rule1_local(const as_starset *ss, anistar_context *ctx,
+                          const as_mesher_params *prm, const as_rfacet *f, int *cause,
+                          anistar_status *err) {
     double viol = 0;
     int why = AS_CAUSE_SIZE;
     *err = ANISTAR_OK;
@@ -159,7 +164,7 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
                      *c = ss->xyz + 3 * (size_t)f->g[2];
         double m[3], q[3];
         for (int k = 0; k < 3; k++) m[k] = (a[k] + b[k] + c[k]) / 3.0;
-        anistar_status s = as_surface_project(ss->ctx, ss->surf, m, q);
+        anistar_status s = as_surface_project(ctx, ss->surf, m, q);
         if (s == ANISTAR_OK) {
             double d = sqrt((m[0] - q[0]) * (m[0] - q[0]) + (m[1] - q[1]) * (m[1] - q[1]) +
                             (m[2] - q[2]) * (m[2] - q[2]));
@@ -172,6 +177,13 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
             return 0;
         }
     }
+    *cause = why;
+    return viol;
+}
+
+/* The feature-size part of rule 1 on top of viol (cause *why) from rule1_local. */
+static double rule1_feature(as_starset *ss, int32_t v, const as_rfacet *f, double viol,
+                            int *why, anistar_status *err) {
     /* design: the lfs part of the sizing field (paper 2.3, sf = min(lfs, dr)): facets of
      * v's star stay below alpha times v's local feature size in M_v */
     if (v >= ss->first_site) {
@@ -185,9 +197,19 @@ double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v
         double x = f->r / (alpha * lfs);
         if (x >= 1 && x > viol) {
             viol = x;
-            why = AS_CAUSE_FEATURE;
+            *why = AS_CAUSE_FEATURE;
         }
     }
+    return viol;
+}
+
+double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
+                          const as_rfacet *f, int *cause, anistar_status *err) {
+    int why;
+    double viol = rule1_local(ss, ss->ctx, prm, f, &why, err);
+    if (*err != ANISTAR_OK) return 0;
+    viol = rule1_feature(ss, v, f, viol, &why, err);
+    if (*err != ANISTAR_OK) return 0;
     if (cause) *cause = why;
     return viol;
 }
@@ -218,6 +240,8 @@ typedef struct refiner {
     uint64_t n3, low_at;
     int64_t low_vertices;
     int hard_limit; /* the vertex limit in force is the star set's hard limit */
+    struct as_evpre *evpre; /* drain's parallel part, per event */
+    size_t cap_evpre;
     /* as_starset_verify_zones' selection (on_held_piece): per site, its piece (union-find
      * over the restricted facets of the stars) and per piece root whether one of its
      * facets is not below hmin */
@@ -290,18 +314,61 @@ static double now_seconds(void) {
 }
 
 /* Turn the star set's events into queue entries. */
+/* What drain's threads find for event k (ev_task): the facet's index in its star (-1:
+ * gone), rule 1 without its feature-size part (cause, status) and rule 2. */
+typedef struct as_evpre {
+    int32_t i;
+    int why;
+    anistar_status err;
+    double v1, v2;
+} as_evpre;
+
+static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)t;
+    refiner *R = arg;
+    const as_starset *ss = R->ss;
+    const as_fevent *e = &ss->ev[k];
+    as_evpre *d = &R->evpre[k];
+    const as_star *st = ss->stars[e->star];
+    d->i = as_star_find(st, e->g);
+    if (d->i < 0) return ANISTAR_OK;
+    const as_rfacet *f = &st->rf[d->i];
+    d->v1 = (f->queued & 1) ? 0 : rule1_local(ss, tctx, R->prm, f, &d->why, &d->err);
+    d->v2 = (f->queued & 2) ? 0 : as_rule2_violation(ss, R->prm, e->star, f);
+    return ANISTAR_OK;
+}
+
 static anistar_status drain(refiner *R) {
     as_starset *ss = R->ss;
     anistar_status s;
+    /* design: with threads, the rules' local tests of every event first, in parallel
+     * (they read the stars and the points only), then the queues in the events' order
+     * with the feature-size part (a cache); a facet queued by an earlier event is skipped
+     * as before, so the queues are the serial loop's */
+    const int pre = ss->pool && ss->nev >= 4;
+    if (pre) {
+        if (ss->nev > R->cap_evpre &&
+            as_grow(R->ctx, (void **)&R->evpre, &R->cap_evpre, ss->nev, sizeof *R->evpre))
+            return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (events)");
+        memset(R->evpre, 0, ss->nev * sizeof *R->evpre);
+        if ((s = as_pool_run(ss->pool, (int32_t)ss->nev, ev_task, R)) != ANISTAR_OK) return s;
+    }
     for (size_t k = 0; k < ss->nev; k++) {
         const as_fevent *e = &ss->ev[k];
         as_star *st = ss->stars[e->star];
-        int32_t i = as_star_find(st, e->g);
+        int32_t i = pre ? R->evpre[k].i : as_star_find(st, e->g);
         if (i < 0) continue;
         as_rfacet *f = &st->rf[i];
         as_fkey key = as_facet_key(f->g);
         if (!(f->queued & 1)) {
-            double v1 = as_rule1_violation(ss, R->prm, e->star, f, NULL, &s);
+            double v1;
+            if (pre && R->evpre[k].err == ANISTAR_OK) {
+                int why = R->evpre[k].why;
+                s = ANISTAR_OK;
+                v1 = rule1_feature(ss, e->star, f, R->evpre[k].v1, &why, &s);
+            } else {
+                v1 = as_rule1_violation(ss, R->prm, e->star, f, NULL, &s);
+            }
             if (s != ANISTAR_OK) return s;
             if (v1 > 0) {
                 as_qentry q = {v1, key, e->star};
@@ -310,7 +377,7 @@ static anistar_status drain(refiner *R) {
             }
         }
         if (!(f->queued & 2)) {
-            double v2 = as_rule2_violation(ss, R->prm, e->star, f);
+            double v2 = pre ? R->evpre[k].v2 : as_rule2_violation(ss, R->prm, e->star, f);
             if (v2 > 0) {
                 as_qentry q = {v2, key, e->star};
                 if ((s = as_queue_push(R->ctx, &R->q[1], q)) != ANISTAR_OK) return s;
@@ -714,7 +781,8 @@ static anistar_status initial_points(refiner *R) {
     anistar_context *ctx = R->ctx;
     as_point_sample smp;
     memset(&smp, 0, sizeof smp);
-    anistar_status s = as_surface_sample(ctx, ss->surf, 256, &smp);
+    anistar_status s = (ss->sampler ? as_sampler_sample(ctx, ss->sampler, 256, &smp)
+                                    : as_surface_sample(ctx, ss->surf, 256, &smp));
     if (s != ANISTAR_OK) return s;
     double *dist = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *dist);
     if (!dist) {
@@ -1021,7 +1089,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     as_starset *ss = as_alloc(ctx, sizeof *ss);
     if (!ss) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
     R.ss = ss;
-    anistar_status s = as_starset_init(ss, ctx, surf, field);
+    anistar_status s =
+        as_starset_init_threads(ss, ctx, surf, field, prm->threads > 0 ? prm->threads : 1);
     if (prm->max_ids > 0) ss->max_ids = prm->max_ids;
     /* the hard limit: global ids are as_gid, counts and indexes int32 (starset.h) */
     const int64_t hardv = (int64_t)ss->max_ids - AS_MESHER_ID_RESERVE;
@@ -1081,6 +1150,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                     "more than max_vertices %lld; raise r0 or max_vertices",
                     R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv);
     if (s == ANISTAR_OK) s = initial_points(&R);
+    as_sampler_free(ctx, ss->sampler); /* the grid's 12 MB, before the stars grow */
+    ss->sampler = NULL;
     double t1 = now_seconds();
     R.cnt.t_init = t1 - t0;
     double last_report = t1;
@@ -1238,6 +1309,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     double t2 = now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
+    as_free(ctx, R.evpre, R.cap_evpre * sizeof *R.evpre);
     as_free(ctx, R.piece, R.cap_piece * sizeof *R.piece);
     as_free(ctx, R.piece_refined, R.cap_piece_refined);
     if (s != ANISTAR_OK && done) {

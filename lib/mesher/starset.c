@@ -456,8 +456,16 @@ static anistar_status apply_diff(as_starset *ss, int32_t v, const as_rfacet *old
 
 /* ---- lifetime ------------------------------------------------------------------------ */
 
+static anistar_status set_threads(as_starset *ss, int n);
+
 anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_surface *surf,
                                const as_field *field) {
+    return as_starset_init_threads(ss, ctx, surf, field, 1);
+}
+
+anistar_status as_starset_init_threads(as_starset *ss, anistar_context *ctx,
+                                       const as_surface *surf, const as_field *field,
+                                       int threads) {
     memset(ss, 0, sizeof *ss);
     ss->max_ids = AS_STARSET_MAX_IDS;
     ss->ctx = ctx;
@@ -466,6 +474,7 @@ anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_su
     ss->env.ctx = ctx;
     ss->env.surf = surf;
     anistar_status s;
+    if ((s = set_threads(ss, threads)) != ANISTAR_OK) return s;
     if ((s = grow_points(ss, 1024)) != ANISTAR_OK) return s;
     double R = surf->radius, h = 2.0 * R;
     for (int k = 0; k < 3; k++) {
@@ -487,7 +496,10 @@ anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_su
     ss->n = 8;
     ss->first_site = 8;
     if ((s = as_kdtree_new(ctx, &ss->kd)) != ANISTAR_OK) return s;
-    if ((s = as_feature_build(ctx, surf, &ss->feat)) != ANISTAR_OK) return s;
+    /* design: one analysis of S for the three samples of the run's start (feature points,
+     * estimate, initial sites); freed once the initial sites are in (refine.c) */
+    if ((s = as_sampler_new(ctx, surf, ss->pool, &ss->sampler)) != ANISTAR_OK) return s;
+    if ((s = as_feature_build(ctx, surf, ss->sampler, &ss->feat)) != ANISTAR_OK) return s;
     ss->alpha = AS_FEATURE_ALPHA;
     if ((s = as_boxindex_new(ctx, &ss->bi)) != ANISTAR_OK) return s;
     ss->spare = as_alloc(ctx, sizeof *ss->spare);
@@ -529,6 +541,18 @@ void as_starset_destroy(as_starset *ss) {
     as_idlist_free(ctx, &ss->ids);
     as_idlist_free(ctx, &ss->fids);
     as_star_scratch_free(ctx, &ss->sc);
+    as_sampler_free(ctx, ss->sampler);
+    if (ss->pool) {
+        for (int t = 0; t < ss->nthreads; t++) {
+            as_star_scratch_free(ctx, &ss->tsc[t]);
+            as_free(ctx, ss->parena[t].f, ss->parena[t].cap * sizeof *ss->parena[t].f);
+        }
+        as_free(ctx, ss->tenv, (size_t)ss->nthreads * sizeof *ss->tenv);
+        as_free(ctx, ss->tsc, (size_t)ss->nthreads * sizeof *ss->tsc);
+        as_free(ctx, ss->parena, (size_t)ss->nthreads * sizeof *ss->parena);
+        as_free(ctx, ss->ptask, ss->cap_ptask * sizeof *ss->ptask);
+        as_pool_free(ss->pool);
+    }
     if (ss->kd) as_kdtree_free(ctx, ss->kd);
     if (ss->bi) as_boxindex_free(ctx, ss->bi);
     memset(ss, 0, sizeof *ss);
@@ -741,17 +765,23 @@ static int zone_grew(const as_star *st, const as_metric_frame *mf, const as_rfac
     return grew;
 }
 
-static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric_frame *mf,
+static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
+                                    as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box);
 
 static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
                                 uint32_t ep) {
-    return grow_star_box(ss, st, mf, ep, NULL);
+    return grow_star_box(ss, &ss->env, &ss->sc, st, mf, ep, NULL);
 }
 
-/* grow_star; box (lo then hi), when not NULL, replaces the first query's box. */
-static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric_frame *mf,
+/* grow_star; box (lo then hi), when not NULL, replaces the first query's box. env and
+ * sc: the environment and scratch of the thread that grows st (its context takes the
+ * allocations and the errors); the star set's search lists and marks are lent to one
+ * growth at a time. */
+static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
+                                    as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box) {
+    anistar_context *ctx = env->ctx;
     anistar_status s;
     const double *c = ss->xyz + 3 * (size_t)st->gid;
     size_t nc = 0;
@@ -787,12 +817,12 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
                     }
                 }
             }
-            if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
+            if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
                 return s;
             if (ss->ids.n > ss->cap_bdist &&
-                as_grow(ss->ctx, (void **)&ss->bdist, &ss->cap_bdist, ss->ids.n,
+                as_grow(ctx, (void **)&ss->bdist, &ss->cap_bdist, ss->ids.n,
                         sizeof *ss->bdist))
-                return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+                return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
             nc = 0;
             for (size_t k = 0; k < ss->ids.n; k++) {
                 int32_t q = ss->ids.ids[k];
@@ -803,7 +833,7 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
                     dq = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q);
                     if (!(dq <= rho)) continue;
                 }
-                if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nc, q)) != ANISTAR_OK)
+                if ((s = push_i32(ctx, &ss->batch, &ss->cap_batch, nc, q)) != ANISTAR_OK)
                     return s;
                 ss->bdist[nc++] = dq;
             }
@@ -852,11 +882,11 @@ static anistar_status grow_star_box(as_starset *ss, as_star *st, const as_metric
         }
         for (size_t k = 0; k < take; k++) ss->stamp[ss->batch[k]] = ep;
         const int was_closed = st->closed;
-        if ((s = as_star_insert(&ss->env, st, mf, ss->batch, (int32_t)take, &ss->sc, NULL)) !=
+        if ((s = as_star_insert(env, st, mf, ss->batch, (int32_t)take, sc, NULL)) !=
             ANISTAR_OK)
             return s;
         double glo[3], ghi[3];
-        if (zone_grew(st, mf, ss->sc.old, ss->sc.nold, glo, ghi) || (was_closed && !st->closed)) {
+        if (zone_grew(st, mf, sc->old, sc->nold, glo, ghi) || (was_closed && !st->closed)) {
             /* design: the zone grew (a new facet's dual edge crosses S far away, or the
              * star opened): the candidates rejected so far were rejected by a smaller
              * zone. Forget them (a new epoch, the star's own sites stamped again) and
@@ -899,8 +929,9 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
 }
 
 /*
- * Build star st of p (id gid, frame mf) from the stars list[0..nl) that p conflicts with,
- * seeded, then grown (grow_star).
+ * The seeds of the star of p (id gid) from the stars list[0..nl) that p conflicts with
+ * (into ss->batch, stamped with a new epoch: *ep_out, *nb_out); build_seeded then builds
+ * and grows the star.
  * Seeds: the stars' centers, and
  *   - simulate = 0 (p is already a site of those stars): the vertices of their facets
  *     that contain p: p's neighbours as those stars see it;
@@ -913,8 +944,8 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
  * stars' surface stars, 20 sites for ~6 neighbours on the paper's torus, cost 25% more
  * instructions: bench_mesher torus,R=10,r=2 under callgrind.)
  */
-static anistar_status build_star(as_starset *ss, as_star *st, const double p[3], int32_t gid,
-                                 const as_metric_frame *mf, size_t nl, int simulate) {
+static anistar_status star_seeds(as_starset *ss, const double p[3], int32_t gid, size_t nl,
+                                 int simulate, uint32_t *ep_out, size_t *nb_out) {
     anistar_status s;
     uint32_t ep = next_epoch(ss);
     size_t nb = 0;
@@ -947,11 +978,30 @@ static anistar_status build_star(as_starset *ss, as_star *st, const double p[3],
             }
         }
     }
-    if ((s = as_star_build_seeded(&ss->env, st, mf, gid, ss->batch, (int32_t)nb, &ss->sc)) !=
-        ANISTAR_OK)
+    *ep_out = ep;
+    *nb_out = nb;
+    return ANISTAR_OK;
+}
+
+/* Build star st of gid (frame mf) from the nb seeds in ss->batch (epoch ep: star_seeds),
+ * then grow it; on env and sc (see grow_star_box). */
+static anistar_status build_seeded(as_starset *ss, const as_star_env *env, as_star_scratch *sc,
+                                   as_star *st, const as_metric_frame *mf, int32_t gid,
+                                   size_t nb, uint32_t ep) {
+    anistar_status s;
+    if ((s = as_star_build_seeded(env, st, mf, gid, ss->batch, (int32_t)nb, sc)) != ANISTAR_OK)
         return s;
     ss->star_builds++;
-    return grow_star(ss, st, mf, ep);
+    return grow_star_box(ss, env, sc, st, mf, ep, NULL);
+}
+
+static anistar_status build_star(as_starset *ss, as_star *st, const double p[3], int32_t gid,
+                                 const as_metric_frame *mf, size_t nl, int simulate) {
+    uint32_t ep;
+    size_t nb;
+    anistar_status s = star_seeds(ss, p, gid, nl, simulate, &ep, &nb);
+    if (s != ANISTAR_OK) return s;
+    return build_seeded(ss, &ss->env, &ss->sc, st, mf, gid, nb, ep);
 }
 
 /* Position of triple g in the sorted facets keep[0..n), or -1. */
@@ -979,7 +1029,8 @@ static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) 
     if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
     uint32_t ep = next_epoch(ss);
     for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
-    if ((s = grow_star_box(ss, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
+    if ((s = grow_star_box(ss, &ss->env, &ss->sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK)
+        return s;
     ss->zone_regrowths++;
     for (int32_t k = 0; k < st->nrf; k++)
         st->rf[k].fresh = find_keep(ss->keep, nkeep, st->rf[k].g) < 0;
@@ -1177,6 +1228,83 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
     return apply_diff(ss, v, ss->keep, nkeep);
 }
 
+/* One task of a parallel insertion of site ss->pgid (see as_starset_insert): task 0
+ * builds its star from the seeds in ss->batch (epoch ss->pep), task k > 0 inserts it
+ * into star list[k - 1]. */
+static anistar_status insert_task(void *arg, int32_t task, int t, anistar_context *tctx) {
+    as_starset *ss = arg;
+    if (task == 0) {
+        int32_t g = ss->pgid;
+        return build_seeded(ss, &ss->tenv[t], &ss->tsc[t], ss->stars[g], &ss->mf[g], g,
+                            ss->pnb, ss->pep);
+    }
+    int32_t k = task - 1;
+    int32_t v = ss->list[k];
+    as_star *sv = ss->stars[v];
+    as_star_scratch *sc = &ss->tsc[t];
+    as_ptask *pt = &ss->ptask[k];
+    int32_t gid = ss->pgid;
+    pt->was_closed = sv->closed;
+    sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+    anistar_status s = as_star_insert(&ss->tenv[t], sv, &ss->mf[v], &gid, 1, sc, NULL);
+    if (s != ANISTAR_OK) return s;
+    as_parena *A = &ss->parena[t];
+    if (as_grow(tctx, (void **)&A->f, &A->cap, A->n + (size_t)sc->nold, sizeof *A->f))
+        return as_fail(tctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
+    if (sc->nold) memcpy(A->f + A->n, sc->old, (size_t)sc->nold * sizeof *A->f);
+    pt->thread = t;
+    pt->off = A->n;
+    pt->nold = sc->nold;
+    A->n += (size_t)sc->nold;
+    return ANISTAR_OK;
+}
+
+/* Insert site gid into the stars list[0..nl) on the pool (their facets before, in
+ * ss->ptask) and build its star from the nb seeds of ss->batch (epoch ep). */
+static anistar_status insert_parallel(as_starset *ss, int32_t gid, size_t nl, size_t nb,
+                                      uint32_t ep) {
+    if (nl > ss->cap_ptask) {
+        if (as_grow(ss->ctx, (void **)&ss->ptask, &ss->cap_ptask, nl, sizeof *ss->ptask))
+            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
+    }
+    for (int t = 0; t < ss->nthreads; t++) {
+        ss->tenv[t] = ss->env; /* the points may have moved (grow_points) */
+        ss->tenv[t].ctx = as_pool_context(ss->pool, t);
+        ss->parena[t].n = 0;
+    }
+    ss->pgid = gid;
+    ss->pnb = nb;
+    ss->pep = ep;
+    return as_pool_run(ss->pool, (int32_t)nl + 1, insert_task, ss);
+}
+
+static anistar_status set_threads(as_starset *ss, int n) {
+    if (n < 1 || n > AS_POOL_MAX_THREADS)
+        return as_fail(ss->ctx, ANISTAR_EINVAL, "threads must be in [1, %d], got %d",
+                       AS_POOL_MAX_THREADS, n);
+    if (ss->pool || n == 1) return ANISTAR_OK;
+    anistar_status s = as_pool_new(ss->ctx, n, &ss->pool);
+    if (s != ANISTAR_OK) return s;
+    ss->tenv = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->tenv);
+    ss->tsc = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->tsc);
+    ss->parena = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->parena);
+    if (!ss->tenv || !ss->tsc || !ss->parena) {
+        as_free(ss->ctx, ss->tenv, (size_t)n * sizeof *ss->tenv);
+        as_free(ss->ctx, ss->tsc, (size_t)n * sizeof *ss->tsc);
+        as_free(ss->ctx, ss->parena, (size_t)n * sizeof *ss->parena);
+        ss->tenv = NULL;
+        ss->tsc = NULL;
+        ss->parena = NULL;
+        as_pool_free(ss->pool);
+        ss->pool = NULL;
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (threads)");
+    }
+    memset(ss->tsc, 0, (size_t)n * sizeof *ss->tsc);
+    memset(ss->parena, 0, (size_t)n * sizeof *ss->parena);
+    ss->nthreads = n;
+    return ANISTAR_OK;
+}
+
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
     anistar_status s;
     if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
@@ -1192,24 +1320,50 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
 
     size_t nl;
     if ((s = conflicting_stars(ss, p, gid, &nl)) != ANISTAR_OK) return s;
-    /* 1. insert p into the conflicting stars */
+    /* design: p's star is seeded from the stars as they are before p enters them (the
+     * vertices of the facets whose surface balls hold p: the facets p destroys, as a
+     * simulation seeds), so that it can be built while p enters them */
+    uint32_t pep;
+    size_t pnb;
+    if ((s = star_seeds(ss, p, gid, nl, 1, &pep, &pnb)) != ANISTAR_OK) return s;
+    /* 1. insert p into the conflicting stars and build p's star: in parallel (each task
+     * one star, on its thread's scratch; the stars are distinct, and an insertion or a
+     * build reads no star but its own), then the rest in the stars' order. design:
+     * as_star_insert depends only on the star, p and the points, p's build only on its
+     * seeds, the points and the kd-tree (which p enters after), and apply_diff's table
+     * and events only on the order of the stars: the result is the serial loop's for
+     * any thread count. */
+    const int par = ss->pool && nl >= 1;
+    if (par && (s = insert_parallel(ss, gid, nl, pnb, pep)) != ANISTAR_OK) return s;
     for (size_t k = 0; k < nl; k++) {
         int32_t v = ss->list[k];
         as_star *sv = ss->stars[v];
-        int32_t ch = 0;
-        const int was_closed = sv->closed;
-        sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
-        if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, &ch)) != ANISTAR_OK)
-            return s;
+        const as_rfacet *old;
+        int32_t nold;
+        int was_closed;
+        if (par) {
+            const as_ptask *pt = &ss->ptask[k];
+            old = ss->parena[pt->thread].f + pt->off;
+            nold = pt->nold;
+            was_closed = pt->was_closed;
+        } else {
+            was_closed = sv->closed;
+            sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+            if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, NULL)) !=
+                ANISTAR_OK)
+                return s;
+            old = ss->sc.old;
+            nold = ss->sc.nold;
+        }
         ss->star_updates++;
-        if ((s = apply_diff(ss, v, ss->sc.old, ss->sc.nold)) != ANISTAR_OK) return s;
+        if ((s = apply_diff(ss, v, old, nold)) != ANISTAR_OK) return s;
         /* design: a star whose point count doubled since it was built holds points that
          * entered while its conflict zone was large; compact it after this insertion.
          * Rebuild it too when its zone grew: paper 5.3 says zones only shrink, but on a
          * curved or thin surface a new facet's dual edge can cross S far away, and the
          * sites of its surface ball were never offered to this star. */
         double zb[6];
-        int grew = zone_grew(sv, &ss->mf[v], ss->sc.old, ss->sc.nold, zb, zb + 3);
+        int grew = zone_grew(sv, &ss->mf[v], old, nold, zb, zb + 3);
         if (!grew && was_closed && !sv->closed) {
             /* design: a closed star that opens (a facet lost) has a zone no longer bounded
              * by surface balls: the union of the circumballs of its tets around v, which
@@ -1238,7 +1392,9 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         }
     }
     /* 2. p's star */
-    if ((s = build_star(ss, st, p, gid, &ss->mf[gid], nl, 0)) != ANISTAR_OK) return s;
+    if (!par && (s = build_seeded(ss, &ss->env, &ss->sc, st, &ss->mf[gid], gid, pnb, pep)) !=
+                    ANISTAR_OK)
+        return s;
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;

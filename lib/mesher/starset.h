@@ -28,6 +28,7 @@
 #include "geom/kdtree.h"
 #include "mesher/feature.h"
 #include "mesher/star.h"
+#include "pool.h"
 #include "surface/field.h"
 
 #define AS_STARSET_MAX_IDS INT32_MAX
@@ -44,6 +45,20 @@ typedef struct as_ftab_entry {
     uint8_t mask;   /* 0: an empty slot */
     uint8_t queued; /* an entry of rule 3's queue refers to it */
 } as_ftab_entry;
+
+/* Threads (as_starset_set_threads): what one task of a parallel insertion left for the
+ * serial part after it: the star's facets before the insertion (in its thread's arena),
+ * whether it was closed. */
+typedef struct as_ptask {
+    size_t off;     /* in the arena of thread `thread` */
+    int32_t nold;
+    int thread;
+    int was_closed;
+} as_ptask;
+typedef struct as_parena {
+    as_rfacet *f;
+    size_t n, cap;
+} as_parena;
 
 /* A facet of a star that is new or whose surface ball moved (the refiner's queue feed). */
 typedef struct as_fevent {
@@ -73,6 +88,7 @@ typedef struct as_starset {
     as_fkey *inc;            /* inconsistent facets (keys) */
     size_t ninc, cap_inc;
 
+    as_sampler *sampler;     /* the samples of the run's start (NULL after) */
     as_kdtree *kd;           /* poles and sites */
     as_feature feat;         /* medial points: the local feature size */
     double *lfs;             /* per id: lfs in its own metric (NaN: not computed yet) */
@@ -123,6 +139,20 @@ typedef struct as_starset {
     as_rfacet *keep;         /* a star's facets before its compaction */
     size_t cap_keep;
 
+    /* threads (docs/algorithm.md, "Threads"): the pool (NULL: one thread), per thread
+     * slot an environment (the slot's context) and a scratch, the tasks of the current
+     * parallel insertion and the arenas of their old facets */
+    as_pool *pool;
+    int nthreads;
+    as_star_env *tenv;
+    as_star_scratch *tsc;
+    as_parena *parena;
+    as_ptask *ptask;
+    size_t cap_ptask;
+    int32_t pgid;            /* the site being inserted, */
+    size_t pnb;              /* the seeds of its star in batch, */
+    uint32_t pep;            /* and their epoch */
+
     /* statistics */
     uint64_t star_updates, star_builds, conflict_tests, star_rebuilds, zone_regrowths;
 } as_starset;
@@ -149,6 +179,12 @@ static inline int as_fkey_cmp(const as_fkey *a, const as_fkey *b) {
  */
 anistar_status as_starset_init(as_starset *ss, anistar_context *ctx, const as_surface *surf,
                                const as_field *field);
+/* The same with threads for its parallel sections (>= 1; 1: serial, as_starset_init).
+ * The results are the same for every count (docs/algorithm.md, "Threads"). Also EINVAL
+ * (a count out of [1, AS_POOL_MAX_THREADS]) or EINTERNAL (a thread could not start). */
+anistar_status as_starset_init_threads(as_starset *ss, anistar_context *ctx,
+                                       const as_surface *surf, const as_field *field,
+                                       int threads);
 void as_starset_destroy(as_starset *ss);
 
 /*

@@ -9,6 +9,7 @@
  * creation, so concurrent queries are safe.
  */
 #include "surface/surface.h"
+#include "pool.h"
 
 #include <float.h>
 #include <math.h>
@@ -2379,8 +2380,22 @@ static anistar_status sm_areas(sm_state *st, double *area) {
 /* Pick up to q records of rec[0..m) by farthest-point sampling of their midpoints (among
  * at most 8 q candidates, a regular stride through the list) and append their crossings
  * to out. work holds 4 m doubles. */
-static anistar_status sm_pick(sm_state *st, const sm_rec *rec, size_t m, size_t q, int32_t comp,
-                              double *work, as_point_sample *out) {
+/* One pick of a sample: the record bracketing the crossing and the point to refine from. */
+typedef struct sm_job {
+    const sm_rec *rec;
+    double mid[3], x[3];
+    int32_t comp;
+    int hit;
+} sm_job;
+
+/*
+ * The picks of up to q points of component comp from its m records rec (appended to
+ * jobs[*nj..]): farthest-point order over the records' midpoints (a stride of them when
+ * there are many). design: the order depends on the midpoints only, not on the refined
+ * crossings, so the crossings can then be refined in any order (in parallel).
+ */
+static void sm_order(const sm_rec *rec, size_t m, size_t q, int32_t comp, double *work,
+                     sm_job *jobs, size_t *nj) {
     size_t stride = m > 8 * q ? m / (8 * q) : 1;
     size_t nc = (m + stride - 1) / stride;
     if (q > nc) q = nc;
@@ -2392,16 +2407,12 @@ static anistar_status sm_pick(sm_state *st, const sm_rec *rec, size_t m, size_t 
     }
     size_t cur = 0;
     for (size_t pick = 0; pick < q; pick++) {
-        const sm_rec *r = &rec[cur * stride];
-        double mid[3] = {work[4 * cur], work[4 * cur + 1], work[4 * cur + 2]}, x[3];
-        int hit;
-        anistar_status rs = as_fsurface_crossing(st->ctx, st->s, r->a, r->b, mid, &hit, x);
-        if (rs) return rs;
-        if (hit) {
-            memcpy(out->points + 3 * out->n, x, sizeof x);
-            out->component[out->n] = comp;
-            out->n++;
-        }
+        sm_job *j = &jobs[(*nj)++];
+        j->rec = &rec[cur * stride];
+        memcpy(j->mid, work + 4 * cur, sizeof j->mid);
+        j->comp = comp;
+        j->hit = 0;
+        const double *mid = j->mid;
         work[4 * cur + 3] = -1;
         size_t next = 0;
         double far = -1;
@@ -2418,82 +2429,120 @@ static anistar_status sm_pick(sm_state *st, const sm_rec *rec, size_t m, size_t 
         if (far < 0) break;
         cur = next;
     }
-    return ANISTAR_OK;
 }
 
-anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, size_t max_points,
-                                  as_point_sample *out) {
+typedef struct sm_jobs {
+    const as_surface *s;
+    sm_job *job;
+} sm_jobs;
+
+static anistar_status sm_job_run(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)t;
+    sm_jobs *J = arg;
+    sm_job *j = &J->job[k];
+    return as_fsurface_crossing(tctx, J->s, j->rec->a, j->rec->b, j->mid, &j->hit, j->x);
+}
+
+/* The analysis of S on the grid (values, classification, witnesses, crossings,
+ * components, areas): the part of a sample that does not depend on its size. *area
+ * receives st->ncomp areas (ctx's). */
+static anistar_status sm_analyse(sm_state *st, double **area) {
+    anistar_context *ctx = st->ctx;
+    const as_surface *s = st->s;
+    *area = NULL;
+    anistar_status rs = sm_values(st);
+    if (!rs) {
+        sm_differences(st);
+        rs = sm_classify(st);
+    }
+    if (!rs) rs = sm_witnesses(st);
+    if (!rs) {
+        sm_edge_counts(st);
+        rs = sm_edges(st);
+    }
+    if (!rs) rs = sm_link(st);
+    if (!rs) rs = sm_components(st);
+    if (rs) return rs;
+    if (st->ncomp == 0)
+        return as_fail(ctx, ANISTAR_ENOSURFACE,
+                       "surface: no surface found inside the bounding sphere (center %g %g %g, "
+                       "radius %g): f keeps one sign on a %zu^3 grid (spacing %g) and near its "
+                       "vertices where it bends",
+                       s->center[0], s->center[1], s->center[2], s->radius, st->g.nv, st->g.h);
+    *area = as_alloc_array(ctx, st->ncomp, sizeof(double));
+    if (!*area) return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    if ((rs = sm_areas(st, *area))) {
+        as_free(ctx, *area, st->ncomp * sizeof(double));
+        *area = NULL;
+    }
+    return rs;
+}
+
+/* The sample of about max_points points from an analysis (st, its areas area0: not
+ * changed); the crossings refined on pool (NULL: here). */
+static anistar_status sm_sample(sm_state *st, const double *area0, size_t max_points,
+                                as_pool *pool, as_point_sample *out) {
+    anistar_context *ctx = st->ctx;
     memset(out, 0, sizeof *out);
-    if (!s->ops->eval) return fail_no_function(ctx, s);
-    if (max_points == 0) max_points = 64;
-    sm_state st;
-    memset(&st, 0, sizeof st);
-    st.ctx = ctx;
-    st.s = s;
     as_point_sample tmp;
     memset(&tmp, 0, sizeof tmp);
     double *work = NULL, *area = NULL;
-    size_t total = 0, nwork = 0;
-    anistar_status rs = sm_values(&st);
-    if (!rs) {
-        sm_differences(&st);
-        rs = sm_classify(&st);
-    }
-    if (!rs) rs = sm_witnesses(&st);
-    if (!rs) {
-        sm_edge_counts(&st);
-        rs = sm_edges(&st);
-    }
-    if (!rs) rs = sm_link(&st);
-    if (!rs) rs = sm_components(&st);
-    if (rs) goto done;
-    if (st.ncomp == 0) {
-        rs = as_fail(ctx, ANISTAR_ENOSURFACE,
-                     "surface: no surface found inside the bounding sphere (center %g %g %g, radius "
-                     "%g): f keeps one sign on a %zu^3 grid (spacing %g) and near its "
-                     "vertices where it bends",
-                     s->center[0], s->center[1], s->center[2], s->radius, st.g.nv, st.g.h);
-        goto done;
-    }
-    area = as_alloc_array(ctx, st.ncomp, sizeof(double));
-    if (!area) {
-        rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
-        goto done;
-    }
-    if ((rs = sm_areas(&st, area))) goto done;
+    sm_job *jobs = NULL;
+    size_t total = 0, nwork = 0, nj = 0;
+    anistar_status rs = ANISTAR_OK;
+    area = as_alloc_array(ctx, st->ncomp, sizeof(double));
+    if (!area) return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    memcpy(area, area0, st->ncomp * sizeof(double));
     /* Quotas: proportional to the areas, at least one per component. The points go to
      * temporaries of capacity `total`, then to arrays of exactly n. */
     double atotal = 0;
-    for (size_t k = 0; k < st.ncomp; k++) atotal += area[k];
-    total = max_points + st.ncomp;
-    nwork = st.nrec;
+    for (size_t k = 0; k < st->ncomp; k++) atotal += area[k];
+    total = max_points + st->ncomp;
+    nwork = st->nrec;
     tmp.points = as_alloc_array(ctx, total, 3 * sizeof(double));
     tmp.component = as_alloc_array(ctx, total, sizeof(int32_t));
     work = as_alloc_array(ctx, nwork, 4 * sizeof(double));
-    if (!tmp.points || !tmp.component || !work) {
+    jobs = as_alloc_array(ctx, total, sizeof *jobs);
+    if (!tmp.points || !tmp.component || !work || !jobs) {
         rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
         goto done;
     }
-    for (size_t i = 0; i < st.nrec && !rs;) {
-        int32_t comp = st.rec[i].comp;
+    for (size_t i = 0; i < st->nrec;) {
+        int32_t comp = st->rec[i].comp;
         size_t j = i;
-        while (j < st.nrec && st.rec[j].comp == comp) j++;
-        double share = atotal > 0 ? area[comp] / atotal : (double)(j - i) / (double)st.nrec;
+        while (j < st->nrec && st->rec[j].comp == comp) j++;
+        double share = atotal > 0 ? area[comp] / atotal : (double)(j - i) / (double)st->nrec;
         size_t q = (size_t)((double)max_points * share);
         if (q < 1) q = 1;
-        rs = sm_pick(&st, st.rec + i, j - i, q, comp, work, &tmp);
+        sm_order(st->rec + i, j - i, q, comp, work, jobs, &nj);
         i = j;
     }
+    {
+        sm_jobs J = {st->s, jobs};
+        if (pool) {
+            rs = as_pool_run(pool, (int32_t)nj, sm_job_run, &J);
+        } else {
+            for (size_t k = 0; k < nj && !rs; k++)
+                rs = as_fsurface_crossing(ctx, st->s, jobs[k].rec->a, jobs[k].rec->b, jobs[k].mid,
+                                          &jobs[k].hit, jobs[k].x);
+        }
+    }
     if (rs) goto done;
+    for (size_t k = 0; k < nj; k++)
+        if (jobs[k].hit) {
+            memcpy(tmp.points + 3 * tmp.n, jobs[k].x, sizeof jobs[k].x);
+            tmp.component[tmp.n] = jobs[k].comp;
+            tmp.n++;
+        }
     /* A component whose crossings all failed to refine (none should: each record brackets
      * one sign change) is dropped and the others renumbered. work (4 nrec >= ncomp
      * doubles) holds the new numbers. */
     size_t ncomp = 0;
     {
         int32_t *renum = (int32_t *)work;
-        for (size_t k = 0; k < st.ncomp; k++) renum[k] = -1;
+        for (size_t k = 0; k < st->ncomp; k++) renum[k] = -1;
         for (size_t i = 0; i < tmp.n; i++) renum[tmp.component[i]] = 0;
-        for (size_t k = 0; k < st.ncomp; k++)
+        for (size_t k = 0; k < st->ncomp; k++)
             if (renum[k] == 0) {
                 area[ncomp] = area[k];
                 renum[k] = (int32_t)ncomp++;
@@ -2520,13 +2569,85 @@ anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, siz
     memcpy(out->area, area, ncomp * sizeof(double));
     out->n = tmp.n;
     out->ncomponents = ncomp;
-    out->spacing = st.g.h;
+    out->spacing = st->g.h;
 done:
+    as_free(ctx, jobs, total * sizeof *jobs);
     as_free(ctx, work, nwork * 4 * sizeof(double));
     as_free(ctx, tmp.points, total * 3 * sizeof(double));
     as_free(ctx, tmp.component, total * sizeof(int32_t));
-    as_free(ctx, area, st.ncomp * sizeof(double));
-    sm_state_free(&st);
+    as_free(ctx, area, st->ncomp * sizeof(double));
     if (rs) memset(out, 0, sizeof *out);
     return rs;
+}
+
+anistar_status as_fsurface_sample(anistar_context *ctx, const as_surface *s, size_t max_points,
+                                  as_point_sample *out) {
+    memset(out, 0, sizeof *out);
+    if (!s->ops->eval) return fail_no_function(ctx, s);
+    if (max_points == 0) max_points = 64;
+    sm_state st;
+    memset(&st, 0, sizeof st);
+    st.ctx = ctx;
+    st.s = s;
+    double *area = NULL;
+    anistar_status rs = sm_analyse(&st, &area);
+    if (!rs) rs = sm_sample(&st, area, max_points, NULL, out);
+    if (area) as_free(ctx, area, st.ncomp * sizeof(double));
+    sm_state_free(&st);
+    return rs;
+}
+
+/* ---- a sampler: samples of several sizes from one analysis -------------------------- */
+
+struct as_sampler {
+    const as_surface *s;
+    as_pool *pool;       /* threads for the crossings (NULL: none) */
+    int analysed;        /* 0: not yet, 1: st and area hold the analysis, -1: it failed */
+    anistar_status fail; /* ... with this status */
+    char msg[AS_ERRMSG_SIZE];
+    sm_state st;
+    double *area;
+};
+
+anistar_status as_sampler_new(anistar_context *ctx, const as_surface *s, as_pool *pool,
+                              as_sampler **out) {
+    *out = as_alloc(ctx, sizeof **out);
+    if (!*out) return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    memset(*out, 0, sizeof **out);
+    (*out)->s = s;
+    (*out)->pool = pool;
+    return ANISTAR_OK;
+}
+
+anistar_status as_sampler_sample(anistar_context *ctx, as_sampler *sp, size_t max_points,
+                                 as_point_sample *out) {
+    const as_surface *s = sp->s;
+    if (s->ops->sample || !s->ops->eval) return as_surface_sample(ctx, s, max_points, out);
+    memset(out, 0, sizeof *out);
+    if (max_points == 0) max_points = 64;
+    if (sp->analysed == 0) {
+        sp->st.ctx = ctx;
+        sp->st.s = s;
+        anistar_status rs = sm_analyse(&sp->st, &sp->area);
+        if (rs) {
+            sp->analysed = -1;
+            sp->fail = rs;
+            memcpy(sp->msg, ctx->last_error, sizeof sp->msg);
+            return rs;
+        }
+        sp->analysed = 1;
+    }
+    if (sp->analysed < 0) return as_fail(ctx, sp->fail, "%s", sp->msg);
+    sp->st.ctx = ctx;
+    return sm_sample(&sp->st, sp->area, max_points, sp->pool, out);
+}
+
+void as_sampler_free(anistar_context *ctx, as_sampler *sp) {
+    if (!sp) return;
+    if (sp->st.ctx) {
+        sp->st.ctx = ctx;
+        if (sp->area) as_free(ctx, sp->area, sp->st.ncomp * sizeof(double));
+        sm_state_free(&sp->st);
+    }
+    as_free(ctx, sp, sizeof *sp);
 }

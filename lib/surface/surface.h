@@ -270,6 +270,21 @@ anistar_status as_surface_sample(anistar_context *ctx, const as_surface *s, size
                                  as_point_sample *out);
 void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp);
 
+/* A sampler of s: as_sampler_sample(ctx, sp, n, out) gives exactly as_surface_sample(ctx,
+ * s, n, out), and for a surface given by a function (no sampler of its own) the costly
+ * analysis of S on the grid (values, curvature bounds, components, areas) is done by the
+ * first call and kept for the next ones (the mesher samples S three times). Free with
+ * as_sampler_free (the analysis holds about 45 bytes per grid node, 12 MB). With a pool
+ * (pool.h; NULL: none) the crossings of a sample are refined on its threads: the points
+ * are the same (their order is decided before). */
+typedef struct as_sampler as_sampler;
+struct as_pool;
+anistar_status as_sampler_new(anistar_context *ctx, const as_surface *s, struct as_pool *pool,
+                              as_sampler **out);
+anistar_status as_sampler_sample(anistar_context *ctx, as_sampler *sp, size_t max_points,
+                                 as_point_sample *out);
+void as_sampler_free(anistar_context *ctx, as_sampler *sp);
+
 /* ---- generic implementations for function-based kinds (used when an op is NULL) ---- */
 anistar_status as_fsurface_side(anistar_context *ctx, const as_surface *s, const double p[3],
                                 int *side);

@@ -242,6 +242,8 @@ typedef struct refiner {
     int hard_limit; /* the vertex limit in force is the star set's hard limit */
     struct as_evpre *evpre; /* drain's parallel part, per event */
     size_t cap_evpre;
+    struct as_pcand *pcand; /* Pick_valid's candidates of a round (threads) */
+    size_t cap_pcand;
     /* as_starset_verify_zones' selection (on_held_piece): per site, its piece (union-find
      * over the restricted facets of the stars) and per piece root whether one of its
      * facets is not below hmin */
@@ -466,10 +468,10 @@ static anistar_status site_within(as_starset *ss, const double p[3], int32_t v, 
         lo[k] = p[k] - h[k] * (1 + 1e-9) - 1e-300;
         hi[k] = p[k] + h[k] * (1 + 1e-9) + 1e-300;
     }
-    anistar_status s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids);
+    anistar_status s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ws.ids);
     if (s != ANISTAR_OK) return s;
-    for (size_t k = 0; k < ss->ids.n; k++) {
-        int32_t u = ss->ids.ids[k];
+    for (size_t k = 0; k < ss->ws.ids.n; k++) {
+        int32_t u = ss->ws.ids.ids[k];
         double e = as_metric_dist(mf, p, ss->xyz + 3 * (size_t)u);
         if (!(e < lim)) continue;
         *q = u;
@@ -524,8 +526,9 @@ static int is_duplicate(const as_starset *ss, const double p[3]) {
  * the star of its vertex w (a site): the surface M_w-circumball of the triangle (the
  * smallest M_w-circumball centred on S, paper 3.1) is empty of the points of w's star.
  */
-static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t pid,
-                                         const double p[3], int32_t w, int *restricted) {
+static anistar_status predict_restricted(refiner *R, anistar_context *ctx, const as_rfacet *f,
+                                         int32_t pid, const double p[3], int32_t w,
+                                         int *restricted) {
     as_starset *ss = R->ss;
     const as_metric_frame *mf = &ss->mf[w];
     const double *x[3];
@@ -562,7 +565,7 @@ static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t
     as_metric_unapply(mf, B, b);
     as_metric_unapply(mf, O, o);
     int found = 0;
-    anistar_status s = as_surface_crossing(R->ctx, ss->surf, a, b, o, &found, c);
+    anistar_status s = as_surface_crossing(ctx, ss->surf, a, b, o, &found, c);
     if (s != ANISTAR_OK) return s;
     if (!found) return ANISTAR_OK;
     double C[3];
@@ -592,13 +595,16 @@ static anistar_status predict_restricted(refiner *R, const as_rfacet *f, int32_t
  * predicted surface star are examined; facets with p that other stars would gain but p's
  * star would lack are not simulated (they are caught by rule 3 later).
  */
-static anistar_status valid_point(refiner *R, const double p[3], double rv, int *valid) {
+/* t: the thread slot whose workspace simulates (-1: the caller's); ctx: its context */
+static anistar_status valid_point_on(refiner *R, int t, anistar_context *ctx, const double p[3],
+                                     double rv, int *valid) {
     as_starset *ss = R->ss;
     as_metric_frame mf;
-    anistar_status s = as_starset_metric(ss, p, &mf);
+    anistar_status s = as_starset_metric_in(ss, ctx, p, &mf);
     if (s != ANISTAR_OK) return s;
     as_star *sp;
-    if ((s = as_starset_simulate(ss, p, &mf, &sp)) != ANISTAR_OK) return s;
+    s = t < 0 ? as_starset_simulate(ss, p, &mf, &sp) : as_starset_simulate_thread(ss, t, p, &mf, &sp);
+    if (s != ANISTAR_OK) return s;
     int32_t pid = ss->n;
     *valid = 1;
     for (int32_t i = 0; i < sp->nrf && *valid; i++) {
@@ -612,10 +618,152 @@ static anistar_status valid_point(refiner *R, const double p[3], double rv, int 
                 break;
             }
             int res;
-            if ((s = predict_restricted(R, f, pid, p, w, &res)) != ANISTAR_OK) return s;
+            if ((s = predict_restricted(R, ctx, f, pid, p, w, &res)) != ANISTAR_OK) return s;
             if (!res) *valid = 0;
         }
     }
+    return ANISTAR_OK;
+}
+
+static anistar_status valid_point(refiner *R, const double p[3], double rv, int *valid) {
+    return valid_point_on(R, -1, R->ctx, p, rv, valid);
+}
+
+/* Pick_valid on threads: one candidate of a round (pick_task). */
+typedef struct as_pcand {
+    int is_center;
+    double u[3];        /* a try's draw (in the unit ball, times rad) */
+    uint64_t rng_after; /* the refiner's random state after the draw */
+    int skip;           /* the try gives no candidate (no projection, outside, a site) */
+    double q[3];
+    int valid;
+    anistar_status st;  /* the candidate's error (its message in msg) */
+    char msg[AS_ERRMSG_SIZE];
+} as_pcand;
+
+typedef struct as_pround {
+    refiner *R;
+    const as_rfacet *f;
+    const as_metric_frame *mf;
+    const double *n;
+    int sing;
+    double rad;
+    as_pcand *c;
+} as_pround;
+
+static int is_duplicate(const as_starset *ss, const double p[3]);
+
+static anistar_status pick_one(as_pround *P, as_pcand *c, int t, anistar_context *tctx) {
+    refiner *R = P->R;
+    as_starset *ss = R->ss;
+    const as_rfacet *f = P->f;
+    if (c->is_center) {
+        memcpy(c->q, f->c, sizeof c->q);
+    } else {
+        double w[3], y[3];
+        as_metric_unapply(P->mf, c->u, w);
+        const double *n = P->n;
+        double dn = P->sing ? 0 : w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
+        for (int k2 = 0; k2 < 3; k2++) y[k2] = f->c[k2] + w[k2] - dn * n[k2];
+        anistar_status s = as_surface_project(tctx, ss->surf, y, c->q);
+        if (s == ANISTAR_ENOSURFACE || (s == ANISTAR_OK && !(as_metric_dist(P->mf, c->q, f->c) <= P->rad))) {
+            c->skip = 1;
+            return ANISTAR_OK;
+        }
+        if (s != ANISTAR_OK) return s;
+        if (is_duplicate(ss, c->q)) {
+            c->skip = 1;
+            return ANISTAR_OK;
+        }
+    }
+    return valid_point_on(R, t, tctx, c->q, f->r, &c->valid);
+}
+
+/* A candidate's errors stay with it: the serial loop would report one only if no earlier
+ * candidate was valid. */
+static anistar_status pick_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    as_pround *P = arg;
+    as_pcand *c = &P->c[k];
+    c->skip = 0;
+    c->valid = 0;
+    c->st = pick_one(P, c, t, tctx);
+    if (c->st != ANISTAR_OK) memcpy(c->msg, tctx->last_error, sizeof c->msg);
+    return ANISTAR_OK;
+}
+
+/* Pick_valid on the pool: candidates (the center, then the tries) in rounds of one per
+ * thread. design: a round's draws are made in order before it, each try's random state
+ * after its draw kept; the first valid candidate of a round (in order) wins and the state
+ * is set back to after its draw, and errors count only up to it, so the point, the random
+ * state and the counts are those of the serial loop whatever the thread count (the
+ * candidates after the winner were simulated for nothing: they cost the other threads'
+ * time, not the caller's). */
+static anistar_status pick_valid_pool(refiner *R, const as_rfacet *f, const as_metric_frame *mf,
+                                      double out[3]) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    const int T = as_pool_threads(ss->pool);
+    double n[3] = {0, 0, 0};
+    int sing = 0;
+    anistar_status ns = as_surface_normal_at(R->ctx, ss->surf, f->c, n, &sing);
+    const double rad = R->prm->delta * f->r;
+    if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) return s;
+    if ((size_t)T > R->cap_pcand &&
+        as_grow(R->ctx, (void **)&R->pcand, &R->cap_pcand, (size_t)T, sizeof *R->pcand))
+        return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (Pick_valid)");
+    as_pround P = {R, f, mf, n, sing, rad, R->pcand};
+    int center = !is_duplicate(ss, f->c);
+    int32_t tries = 0; /* tries drawn so far */
+    const int32_t ntries = R->prm->pick_tries;
+    memcpy(out, f->c, 3 * sizeof(double));
+    while (center || tries < ntries) {
+        int m = 0;
+        const uint64_t rng0 = R->rng;
+        if (center) {
+            R->pcand[m].is_center = 1;
+            R->pcand[m].rng_after = rng0;
+            m++;
+        }
+        if (center && ns != ANISTAR_OK) {
+            /* the normal failed: the serial loop would not have needed it if the center
+             * is valid; test the center alone */
+        } else {
+            if (ns != ANISTAR_OK) return ns;
+            for (; m < T && tries < ntries; m++, tries++) {
+                as_pcand *c = &R->pcand[m];
+                c->is_center = 0;
+                double u[3];
+                do {
+                    for (int k = 0; k < 3; k++) u[k] = 2 * rng_unit(R) - 1;
+                } while (u[0] * u[0] + u[1] * u[1] + u[2] * u[2] > 1);
+                for (int k = 0; k < 3; k++) c->u[k] = u[k] * rad;
+                c->rng_after = R->rng;
+            }
+        }
+        s = as_pool_run(ss->pool, m, pick_task, &P);
+        as_starset_collect_counts(ss);
+        if (s != ANISTAR_OK) return s;
+        /* the first valid candidate in order; an error before it ends the run */
+        int win = -1;
+        for (int k = 0; k < m && win < 0; k++) {
+            if (R->pcand[k].st != ANISTAR_OK)
+                return as_fail(R->ctx, R->pcand[k].st, "%s", R->pcand[k].msg);
+            if (R->pcand[k].valid) win = k;
+        }
+        /* the counts and the random state as the serial loop leaves them */
+        int last = win >= 0 ? win : m - 1;
+        for (int k = 0; k <= last; k++)
+            if (!R->pcand[k].is_center) R->cnt.pick_tries++;
+        if (win >= 0) {
+            R->rng = R->pcand[win].rng_after;
+            memcpy(out, R->pcand[win].q, 3 * sizeof(double));
+            return ANISTAR_OK;
+        }
+        if (center && ns != ANISTAR_OK) return ns;
+        center = 0;
+    }
+    R->cnt.pick_failures++;
+    memcpy(out, f->c, 3 * sizeof(double));
     return ANISTAR_OK;
 }
 
@@ -625,6 +773,7 @@ static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, doub
     as_starset *ss = R->ss;
     /* a copy: simulations may move ss->mf */
     const as_metric_frame mfv = ss->mf[v], *mf = &mfv;
+    if (ss->pool) return pick_valid_pool(R, f, mf, out);
     anistar_status s;
     int valid = 0;
     memcpy(out, f->c, 3 * sizeof(double));
@@ -945,15 +1094,15 @@ static anistar_status halve_alpha(refiner *R, size_t *halved) {
             lo[j] = T[j] - T[3];
             hi[j] = T[j] + T[3];
         }
-        if ((s = as_kdtree_box_any(R->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK) return s;
-        for (size_t i = 0; i < ss->ids.n; i++) {
-            int32_t v = ss->ids.ids[i];
-            if (v < ss->first_site || ss->stamp[v] == ep) continue;
+        if ((s = as_kdtree_box_any(R->ctx, ss->kd, lo, hi, 0, &ss->ws.ids)) != ANISTAR_OK) return s;
+        for (size_t i = 0; i < ss->ws.ids.n; i++) {
+            int32_t v = ss->ws.ids.ids[i];
+            if (v < ss->first_site || ss->ws.stamp[v] == ep) continue;
             const double *x = ss->xyz + 3 * (size_t)v;
             double d2 = 0;
             for (int j = 0; j < 3; j++) d2 += (x[j] - T[j]) * (x[j] - T[j]);
             if (!(d2 <= T[3] * T[3])) continue;
-            ss->stamp[v] = ep;
+            ss->ws.stamp[v] = ep;
             if (0.5 * ss->alpha * ss->ascale[v] < AS_FEATURE_ALPHA_MIN) continue;
             ss->ascale[v] *= 0.5;
             (*halved)++;
@@ -961,7 +1110,7 @@ static anistar_status halve_alpha(refiner *R, size_t *halved) {
     }
     /* the stars whose alpha changed, in id order (deterministic) */
     for (int32_t v = ss->first_site; v < ss->n && *halved; v++)
-        if (ss->stamp[v] == ep && (s = requeue_rule1(R, v)) != ANISTAR_OK) return s;
+        if (ss->ws.stamp[v] == ep && (s = requeue_rule1(R, v)) != ANISTAR_OK) return s;
     return ANISTAR_OK;
 }
 
@@ -1310,6 +1459,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
     as_free(ctx, R.evpre, R.cap_evpre * sizeof *R.evpre);
+    as_free(ctx, R.pcand, R.cap_pcand * sizeof *R.pcand);
     as_free(ctx, R.piece, R.cap_piece * sizeof *R.piece);
     as_free(ctx, R.piece_refined, R.cap_piece_refined);
     if (s != ANISTAR_OK && done) {

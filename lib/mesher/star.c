@@ -435,7 +435,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     st->nitet = nnew;
     if ((s = as_del3_vertex_facets(st->d, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
     const as_del3 *d = st->d;
-    const double *vx = env->xyz + 3 * (size_t)st->gid;
+    const double *vx = as_star_xyz(st, env->xyz, st->gid);
     for (size_t k = 0; k < sc->faces.n; k++) {
         int32_t face = sc->faces.a[k];
         int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
@@ -903,7 +903,7 @@ static anistar_status star_done(const as_star_env *env, as_star *st, as_star_scr
 static anistar_status star_add(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                int32_t gid, int *inserted) {
     int32_t vtx = -1;
-    int r = as_del3_insert_frame(st->d, mf, env->xyz + 3 * (size_t)gid, gid, &vtx);
+    int r = as_del3_insert_frame(st->d, mf, as_star_xyz(st, env->xyz, gid), gid, &vtx);
     *inserted = 0;
     if (r == AS_DEL3_DUPLICATE) return ANISTAR_OK;
     if (r != ANISTAR_OK) {

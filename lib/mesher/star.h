@@ -39,6 +39,13 @@ typedef struct as_rfacet {
     uint8_t queued;/* bit k: an entry of rule k+1's queue refers to this facet */
 } as_rfacet;
 
+/* A point a star takes from here instead of from the owner's array (a simulation's
+ * candidate: every thread simulates its own under the same provisional id). */
+typedef struct as_star_ovr {
+    as_gid gid;
+    double p[3];
+} as_star_ovr;
+
 /* What a star needs from its owner: the context, the surface, every point by global id. */
 typedef struct as_star_env {
     anistar_context *ctx;
@@ -75,6 +82,7 @@ typedef struct as_star_env {
 typedef struct as_star {
     as_gid gid;         /* the center v */
     int32_t vloc;       /* v's vertex in the triangulation */
+    const as_star_ovr *ovr; /* NULL, or the point of id ovr->gid (see as_star_ovr) */
     as_del3 *d;         /* during an operation: the owner's working triangulation holding
                            this star (sc->work); NULL while packed */
     /* the packed triangulation (while d is NULL): nv vertices, nt tet slots (nlive live,
@@ -265,6 +273,10 @@ anistar_status as_star_facet_extent(const as_star_env *env, as_star *st, const a
  * (y = F_v q: xyz is every point by global id, mf the star's frame). */
 static inline int32_t as_star_nv(const as_star *st) { return st->nv; }
 static inline as_gid as_star_vertex_gid(const as_star *st, int32_t k) { return st->vgid[k]; }
+/* The point of global id g as star st sees it (its override, else xyz's). */
+static inline const double *as_star_xyz(const as_star *st, const double *xyz, as_gid g) {
+    return st->ovr && g == st->ovr->gid ? st->ovr->p : xyz + 3 * (size_t)g;
+}
 static inline void as_star_point(const as_star *st, const double *xyz, const as_metric_frame *mf,
                                  int32_t k, double y[3]) {
     if (st->vx) {
@@ -272,7 +284,7 @@ static inline void as_star_point(const as_star *st, const double *xyz, const as_
         y[1] = st->vx[3 * (size_t)k + 1];
         y[2] = st->vx[3 * (size_t)k + 2];
     } else {
-        as_metric_apply(mf, xyz + 3 * (size_t)st->vgid[k], y);
+        as_metric_apply(mf, as_star_xyz(st, xyz, st->vgid[k]), y);
     }
 }
 

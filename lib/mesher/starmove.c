@@ -72,14 +72,14 @@ static anistar_status touched_stars(as_starset *ss, as_starmove *mv, int32_t v,
     mv->ids[m++] = v;
     for (int pass = 0; pass < 2; pass++) {
         const double *q = pass == 0 ? x : p;
-        if ((s = as_boxindex_query_point(ctx, ss->bi, q, &ss->cand)) != ANISTAR_OK) return s;
-        for (size_t k = 0; k < ss->cand.n; k++) {
-            int32_t w = ss->cand.ids[k];
+        if ((s = as_boxindex_query_point(ctx, ss->bi, q, &ss->ws.cand)) != ANISTAR_OK) return s;
+        for (size_t k = 0; k < ss->ws.cand.n; k++) {
+            int32_t w = ss->ws.cand.ids[k];
             const as_star *st = ss->stars[w];
             if (w == v || !st) continue;
             int touch = holds(st, v);
             if (!touch && pass == 1) {
-                ss->conflict_tests++;
+                ss->ws.conflict_tests++;
                 touch = as_star_conflicts(st, &ss->mf[w], ss->xyz, p, v, NULL);
             }
             if (!touch) continue;
@@ -109,13 +109,13 @@ static anistar_status new_star(as_starset *ss, as_starmove *mv, int32_t w, const
     if (!st) return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (star)");
     as_star_init(st, ctx);
     uint32_t ep = as_starset_next_epoch(ss);
-    ss->stamp[w] = ep;
+    ss->ws.stamp[w] = ep;
     size_t ns = 0;
     for (int32_t i = 0; i < old->nrf; i++)
         for (int j = 0; j < 3; j++) {
             int32_t q = old->rf[i].g[j];
-            if (q < 8 || q == skip || ss->stamp[q] == ep) continue;
-            ss->stamp[q] = ep;
+            if (q < 8 || q == skip || ss->ws.stamp[q] == ep) continue;
+            ss->ws.stamp[q] = ep;
             if (ns == mv->cap_seeds &&
                 as_grow(ctx, (void **)&mv->seeds, &mv->cap_seeds, ns + 1, sizeof *mv->seeds)) {
                 star_free(ctx, st);

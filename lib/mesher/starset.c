@@ -24,8 +24,8 @@ static void points_layout(as_starset *ss, char *blk, size_t cap) {
     ss->lfs = ss->xyz + 3 * cap;
     ss->ascale = ss->lfs + cap;
     ss->stars = (as_star **)(void *)(ss->ascale + cap);
-    ss->stamp = (uint32_t *)(void *)(ss->stars + cap);
-    ss->scomp = (int32_t *)(void *)(ss->stamp + cap);
+    ss->ws.stamp = (uint32_t *)(void *)(ss->stars + cap);
+    ss->scomp = (int32_t *)(void *)(ss->ws.stamp + cap);
     ss->env.xyz = ss->xyz;
 }
 
@@ -53,11 +53,11 @@ static anistar_status grow_points(as_starset *ss, int64_t need) {
     as_metric_frame *m0 = ss->mf;
     double *x0 = ss->xyz, *lf0 = ss->lfs, *as0 = ss->ascale;
     as_star **st0 = ss->stars;
-    uint32_t *sp0 = ss->stamp;
+    uint32_t *sp0 = ss->ws.stamp;
     int32_t *sc0 = ss->scomp;
     points_layout(ss, blk, cap);
     memmove(ss->scomp, sc0, old * sizeof *sc0);
-    memmove(ss->stamp, sp0, old * sizeof *sp0);
+    memmove(ss->ws.stamp, sp0, old * sizeof *sp0);
     memmove(ss->stars, st0, old * sizeof *st0);
     memmove(ss->ascale, as0, old * sizeof *as0);
     memmove(ss->lfs, lf0, old * sizeof *lf0);
@@ -65,7 +65,7 @@ static anistar_status grow_points(as_starset *ss, int64_t need) {
     (void)m0; /* mf stays at offset 0 */
     for (size_t i = old; i < cap; i++) {
         ss->stars[i] = NULL;
-        ss->stamp[i] = 0;
+        ss->ws.stamp[i] = 0;
         ss->lfs[i] = NAN;
         ss->scomp[i] = -1;
         ss->ascale[i] = 1;
@@ -157,10 +157,11 @@ static void tangent_frame(const double m[6], const double n[3], double t[2][3]) 
  * flat region, an umbilic) the tangent pair has no distortion to bound (x = 0 for any
  * rate), so the arbitrary frame there costs nothing.
  */
-static anistar_status rotation_floor(as_starset *ss, const double p[3], double m[6]) {
+static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx, const double p[3],
+                                     double m[6]) {
     int sing = 0;
     double n[3];
-    anistar_status s = as_surface_normal_at(ss->ctx, ss->surf, p, n, &sing);
+    anistar_status s = as_surface_normal_at(ctx, ss->surf, p, n, &sing);
     if (s != ANISTAR_OK || sing) return s;
     double t[2][3];
     tangent_frame(m, n, t);
@@ -174,7 +175,7 @@ static anistar_status rotation_floor(as_starset *ss, const double p[3], double m
         const double *tk = t[k];
         double h = fmin(0.1 * r0 / e[k], 1e-2 * ss->surf->radius);
         double y[3] = {p[0] + h * tk[0], p[1] + h * tk[1], p[2] + h * tk[2]}, q[3];
-        s = as_surface_project(ss->ctx, ss->surf, y, q);
+        s = as_surface_project(ctx, ss->surf, y, q);
         if (s == ANISTAR_ENOSURFACE) continue;
         if (s != ANISTAR_OK) return s;
         double d = sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
@@ -182,8 +183,8 @@ static anistar_status rotation_floor(as_starset *ss, const double p[3], double m
         if (!(d > 0)) continue;
         double mq[6], nq[3], tq[2][3];
         int sq = 0;
-        if ((s = as_field_eval(ss->ctx, ss->field, q, mq)) != ANISTAR_OK) return s;
-        if ((s = as_surface_normal_at(ss->ctx, ss->surf, q, nq, &sq)) != ANISTAR_OK) return s;
+        if ((s = as_field_eval(ctx, ss->field, q, mq)) != ANISTAR_OK) return s;
+        if ((s = as_surface_normal_at(ctx, ss->surf, q, nq, &sq)) != ANISTAR_OK) return s;
         if (sq) continue;
         tangent_frame(mq, nq, tq);
         double f = e[k];
@@ -224,12 +225,13 @@ static anistar_status rotation_floor(as_starset *ss, const double p[3], double m
     return ANISTAR_OK;
 }
 
-anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf) {
+anistar_status as_starset_metric_in(const as_starset *ss, anistar_context *ctx, const double p[3],
+                                    as_metric_frame *mf) {
     double m[6];
-    anistar_status s = as_field_eval(ss->ctx, ss->field, p, m);
+    anistar_status s = as_field_eval(ctx, ss->field, p, m);
     if (s != ANISTAR_OK) return s;
     if (as_metric_frame_init(mf, m) != 0)
-        return as_fail(ss->ctx, ANISTAR_EINVAL,
+        return as_fail(ctx, ANISTAR_EINVAL,
                        "mesher: the metric at (%.17g, %.17g, %.17g) is not finite and positive "
                        "definite",
                        p[0], p[1], p[2]);
@@ -251,7 +253,7 @@ anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_fr
             }
         }
         if (changed && as_metric_frame_from_eigen(mf, u, e) != 0)
-            return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+            return as_fail(ctx, ANISTAR_EINTERNAL,
                            "mesher: the clamped metric at (%.17g, %.17g, %.17g) is invalid",
                            p[0], p[1], p[2]);
     }
@@ -261,14 +263,18 @@ anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_fr
     if (ss->rot_g > 0) {
         double m2[6];
         memcpy(m2, mf->m, sizeof m2);
-        anistar_status sr = rotation_floor(ss, p, m2);
+        anistar_status sr = rotation_floor(ss, ctx, p, m2);
         if (sr != ANISTAR_OK) return sr;
         if (memcmp(m2, mf->m, sizeof m2) != 0 && as_metric_frame_init(mf, m2) != 0)
-            return as_fail(ss->ctx, ANISTAR_EINTERNAL,
+            return as_fail(ctx, ANISTAR_EINTERNAL,
                            "mesher: the metric raised at (%.17g, %.17g, %.17g) is invalid",
                            p[0], p[1], p[2]);
     }
     return ANISTAR_OK;
+}
+
+anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf) {
+    return as_starset_metric_in(ss, ss->ctx, p, mf);
 }
 
 /* ---- facet table --------------------------------------------------------------------- */
@@ -502,10 +508,26 @@ anistar_status as_starset_init_threads(as_starset *ss, anistar_context *ctx,
     if ((s = as_feature_build(ctx, surf, ss->sampler, &ss->feat)) != ANISTAR_OK) return s;
     ss->alpha = AS_FEATURE_ALPHA;
     if ((s = as_boxindex_new(ctx, &ss->bi)) != ANISTAR_OK) return s;
-    ss->spare = as_alloc(ctx, sizeof *ss->spare);
-    if (!ss->spare) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
-    as_star_init(ss->spare, ctx);
+    ss->ws.spare = as_alloc(ctx, sizeof *ss->ws.spare);
+    if (!ss->ws.spare) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    as_star_init(ss->ws.spare, ctx);
     return ANISTAR_OK;
+}
+
+/* Free a thread's workspace (its own stamp array, lists and spare star). */
+static void ws_free(anistar_context *ctx, as_simws *w) {
+    as_free(ctx, w->stamp, w->cap_stamp * sizeof *w->stamp);
+    as_idlist_free(ctx, &w->cand);
+    as_idlist_free(ctx, &w->ids);
+    as_free(ctx, w->list, w->cap_list * sizeof *w->list);
+    as_free(ctx, w->batch, w->cap_batch * sizeof *w->batch);
+    as_free(ctx, w->hints, w->cap_hints * sizeof *w->hints);
+    as_free(ctx, w->bdist, w->cap_bdist * sizeof *w->bdist);
+    if (w->spare) {
+        as_star_destroy(ctx, w->spare);
+        as_free(ctx, w->spare, sizeof *w->spare);
+    }
+    memset(w, 0, sizeof *w);
 }
 
 void as_starset_destroy(as_starset *ss) {
@@ -516,9 +538,9 @@ void as_starset_destroy(as_starset *ss) {
             as_star_destroy(ctx, ss->stars[i]);
             as_free(ctx, ss->stars[i], sizeof *ss->stars[i]);
         }
-    if (ss->spare) {
-        as_star_destroy(ctx, ss->spare);
-        as_free(ctx, ss->spare, sizeof *ss->spare);
+    if (ss->ws.spare) {
+        as_star_destroy(ctx, ss->ws.spare);
+        as_free(ctx, ss->ws.spare, sizeof *ss->ws.spare);
     }
     as_free(ctx, ss->pblk, points_bytes((size_t)ss->cap));
     as_feature_free(ctx, &ss->feat);
@@ -529,16 +551,16 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->ev, ss->cap_ev * sizeof *ss->ev);
     as_free(ctx, ss->newinc, ss->cap_newinc * sizeof *ss->newinc);
     as_free(ctx, ss->open, ss->cap_open * sizeof *ss->open);
-    as_free(ctx, ss->list, ss->cap_list * sizeof *ss->list);
-    as_free(ctx, ss->batch, ss->cap_batch * sizeof *ss->batch);
-    as_free(ctx, ss->bdist, ss->cap_bdist * sizeof *ss->bdist);
+    as_free(ctx, ss->ws.list, ss->ws.cap_list * sizeof *ss->ws.list);
+    as_free(ctx, ss->ws.batch, ss->ws.cap_batch * sizeof *ss->ws.batch);
+    as_free(ctx, ss->ws.bdist, ss->ws.cap_bdist * sizeof *ss->ws.bdist);
     as_free(ctx, ss->rebuild, ss->cap_rebuild * sizeof *ss->rebuild);
     as_free(ctx, ss->regrow, ss->cap_regrow * sizeof *ss->regrow);
     as_free(ctx, ss->regrow_box, ss->cap_regrow_box * 6 * sizeof *ss->regrow_box);
-    as_free(ctx, ss->hints, ss->cap_hints * sizeof *ss->hints);
+    as_free(ctx, ss->ws.hints, ss->ws.cap_hints * sizeof *ss->ws.hints);
     as_free(ctx, ss->keep, ss->cap_keep * sizeof *ss->keep);
-    as_idlist_free(ctx, &ss->cand);
-    as_idlist_free(ctx, &ss->ids);
+    as_idlist_free(ctx, &ss->ws.cand);
+    as_idlist_free(ctx, &ss->ws.ids);
     as_idlist_free(ctx, &ss->fids);
     as_star_scratch_free(ctx, &ss->sc);
     as_sampler_free(ctx, ss->sampler);
@@ -546,7 +568,9 @@ void as_starset_destroy(as_starset *ss) {
         for (int t = 0; t < ss->nthreads; t++) {
             as_star_scratch_free(ctx, &ss->tsc[t]);
             as_free(ctx, ss->parena[t].f, ss->parena[t].cap * sizeof *ss->parena[t].f);
+            ws_free(ctx, &ss->tws[t]);
         }
+        as_free(ctx, ss->tws, (size_t)ss->nthreads * sizeof *ss->tws);
         as_free(ctx, ss->tenv, (size_t)ss->nthreads * sizeof *ss->tenv);
         as_free(ctx, ss->tsc, (size_t)ss->nthreads * sizeof *ss->tsc);
         as_free(ctx, ss->parena, (size_t)ss->nthreads * sizeof *ss->parena);
@@ -698,13 +722,16 @@ static anistar_status push_i32(anistar_context *ctx, int32_t **a, size_t *cap, s
     return ANISTAR_OK;
 }
 
-static uint32_t next_epoch(as_starset *ss) {
-    if (++ss->epoch == 0) {
-        memset(ss->stamp, 0, (size_t)ss->cap * sizeof *ss->stamp);
-        ss->epoch = 1;
+/* A new epoch of workspace w's marks (cleared when the counter wraps). */
+static uint32_t ws_epoch(as_starset *ss, as_simws *w) {
+    if (++w->epoch == 0) {
+        memset(w->stamp, 0, (w->cap_stamp ? w->cap_stamp : (size_t)ss->cap) * sizeof *w->stamp);
+        w->epoch = 1;
     }
-    return ss->epoch;
+    return w->epoch;
 }
+
+static uint32_t next_epoch(as_starset *ss) { return ws_epoch(ss, &ss->ws); }
 
 /*
  * Grow star st of center gid (frame mf) from the sites of the kd-tree in its conflict-zone
@@ -723,7 +750,7 @@ static uint32_t next_epoch(as_starset *ss) {
  * larger than the spacing around v (its dual edge may cross S far away), and the ball
  * grows by doubling anyway. */
 static double open_radius(const as_starset *ss, const as_star *st, const as_metric_frame *mf) {
-    const double *c = ss->xyz + 3 * (size_t)st->gid;
+    const double *c = as_star_xyz(st, ss->xyz, st->gid);
     double best = INFINITY;
     for (int32_t k = 0; k < as_star_nv(st); k++) {
         as_gid g = as_star_vertex_gid(st, k);
@@ -765,25 +792,25 @@ static int zone_grew(const as_star *st, const as_metric_frame *mf, const as_rfac
     return grew;
 }
 
-static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
+static anistar_status grow_star_box(as_starset *ss, as_simws *w, const as_star_env *env,
                                     as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box);
 
 static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
                                 uint32_t ep) {
-    return grow_star_box(ss, &ss->env, &ss->sc, st, mf, ep, NULL);
+    return grow_star_box(ss, &ss->ws, &ss->env, &ss->sc, st, mf, ep, NULL);
 }
 
 /* grow_star; box (lo then hi), when not NULL, replaces the first query's box. env and
  * sc: the environment and scratch of the thread that grows st (its context takes the
  * allocations and the errors); the star set's search lists and marks are lent to one
  * growth at a time. */
-static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
+static anistar_status grow_star_box(as_starset *ss, as_simws *w, const as_star_env *env,
                                     as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box) {
     anistar_context *ctx = env->ctx;
     anistar_status s;
-    const double *c = ss->xyz + 3 * (size_t)st->gid;
+    const double *c = as_star_xyz(st, ss->xyz, st->gid);
     size_t nc = 0;
     int query = 1, limited = 0;
     double rho = 0;
@@ -817,41 +844,41 @@ static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
                     }
                 }
             }
-            if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
+            if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &w->ids)) != ANISTAR_OK)
                 return s;
-            if (ss->ids.n > ss->cap_bdist &&
-                as_grow(ctx, (void **)&ss->bdist, &ss->cap_bdist, ss->ids.n,
-                        sizeof *ss->bdist))
+            if (w->ids.n > w->cap_bdist &&
+                as_grow(ctx, (void **)&w->bdist, &w->cap_bdist, w->ids.n,
+                        sizeof *w->bdist))
                 return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
             nc = 0;
-            for (size_t k = 0; k < ss->ids.n; k++) {
-                int32_t q = ss->ids.ids[k];
-                if (ss->stamp[q] == ep) continue;
+            for (size_t k = 0; k < w->ids.n; k++) {
+                int32_t q = w->ids.ids[k];
+                if (w->stamp[q] == ep) continue;
                 double dq = -1; /* M_v distance to v, computed when first needed */
                 if (limited) {
                     /* beyond the ball: left for a larger radius (not stamped) */
                     dq = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q);
                     if (!(dq <= rho)) continue;
                 }
-                if ((s = push_i32(ctx, &ss->batch, &ss->cap_batch, nc, q)) != ANISTAR_OK)
+                if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nc, q)) != ANISTAR_OK)
                     return s;
-                ss->bdist[nc++] = dq;
+                w->bdist[nc++] = dq;
             }
         }
         query = !AS_STAR_BALL_ZONE(st) || limited;
         size_t nb = 0;
         for (size_t k = 0; k < nc; k++) {
-            int32_t q = ss->batch[k];
-            ss->conflict_tests++;
+            int32_t q = w->batch[k];
+            w->conflict_tests++;
             if (!as_star_conflicts(st, mf, ss->xyz, ss->xyz + 3 * (size_t)q, q, NULL)) {
                 /* design: zones only shrink, so a site outside it now stays outside */
-                ss->stamp[q] = ep;
+                w->stamp[q] = ep;
                 continue;
             }
-            double dq = ss->bdist[k];
+            double dq = w->bdist[k];
             if (dq < 0) dq = as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q);
-            ss->batch[nb] = q;
-            ss->bdist[nb++] = dq;
+            w->batch[nb] = q;
+            w->bdist[nb++] = dq;
         }
         nc = nb;
         if (nc == 0) {
@@ -864,8 +891,8 @@ static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
         }
         size_t take = AS_STARSET_BATCH;
         if (nc > take) {
-            int32_t *b = ss->batch;
-            double *bd = ss->bdist;
+            int32_t *b = w->batch;
+            double *bd = w->bdist;
             for (size_t i = 0; i < take; i++) {
                 size_t best = i;
                 for (size_t j = i + 1; j < nc; j++)
@@ -880,9 +907,9 @@ static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
         } else {
             take = nc;
         }
-        for (size_t k = 0; k < take; k++) ss->stamp[ss->batch[k]] = ep;
+        for (size_t k = 0; k < take; k++) w->stamp[w->batch[k]] = ep;
         const int was_closed = st->closed;
-        if ((s = as_star_insert(env, st, mf, ss->batch, (int32_t)take, sc, NULL)) !=
+        if ((s = as_star_insert(env, st, mf, w->batch, (int32_t)take, sc, NULL)) !=
             ANISTAR_OK)
             return s;
         double glo[3], ghi[3];
@@ -894,34 +921,35 @@ static anistar_status grow_star_box(as_starset *ss, const as_star_env *env,
              * stays out of the star while its far facet's surface ball holds it, and
              * rule 1 inserts that ball's center on the site (seen on the skull at
              * r0 = 4 when a star was compacted). */
-            ep = next_epoch(ss);
-            for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
+            ep = ws_epoch(ss, w);
+            for (int32_t k = 0; k < as_star_nv(st); k++) w->stamp[as_star_vertex_gid(st, k)] = ep;
             nc = 0;
             query = 1;
             box = NULL;
             continue;
         }
         /* the rest stays in the list, in order, for the next round */
-        memmove(ss->batch, ss->batch + take, (nc - take) * sizeof *ss->batch);
-        memmove(ss->bdist, ss->bdist + take, (nc - take) * sizeof *ss->bdist);
+        memmove(w->batch, w->batch + take, (nc - take) * sizeof *w->batch);
+        memmove(w->bdist, w->bdist + take, (nc - take) * sizeof *w->bdist);
         nc -= take;
     }
 }
 
-/* The stars that p (id gid) conflicts with, into ss->list; returns their count. */
-static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32_t gid,
+/* The stars that p (id gid) conflicts with, into ss->ws.list; returns their count. */
+static anistar_status conflicting_stars(as_starset *ss, as_simws *w, anistar_context *ctx,
+                                        const double p[3], int32_t gid,
                                         size_t *count) {
     anistar_status s;
     *count = 0;
-    if ((s = as_boxindex_query_point(ss->ctx, ss->bi, p, &ss->cand)) != ANISTAR_OK) return s;
+    if ((s = as_boxindex_query_point(ctx, ss->bi, p, &w->cand)) != ANISTAR_OK) return s;
     size_t nl = 0;
-    for (size_t k = 0; k < ss->cand.n; k++) {
-        int32_t v = ss->cand.ids[k];
-        ss->conflict_tests++;
+    for (size_t k = 0; k < w->cand.n; k++) {
+        int32_t v = w->cand.ids[k];
+        w->conflict_tests++;
         int32_t hint = -1;
         if (!as_star_conflicts(ss->stars[v], &ss->mf[v], ss->xyz, p, gid, &hint)) continue;
-        if ((s = push_i32(ss->ctx, &ss->list, &ss->cap_list, nl, v)) != ANISTAR_OK) return s;
-        if ((s = push_i32(ss->ctx, &ss->hints, &ss->cap_hints, nl, hint)) != ANISTAR_OK) return s;
+        if ((s = push_i32(ctx, &w->list, &w->cap_list, nl, v)) != ANISTAR_OK) return s;
+        if ((s = push_i32(ctx, &w->hints, &w->cap_hints, nl, hint)) != ANISTAR_OK) return s;
         nl++;
     }
     *count = nl;
@@ -930,7 +958,7 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
 
 /*
  * The seeds of the star of p (id gid) from the stars list[0..nl) that p conflicts with
- * (into ss->batch, stamped with a new epoch: *ep_out, *nb_out); build_seeded then builds
+ * (into ss->ws.batch, stamped with a new epoch: *ep_out, *nb_out); build_seeded then builds
  * and grows the star.
  * Seeds: the stars' centers, and
  *   - simulate = 0 (p is already a site of those stars): the vertices of their facets
@@ -944,17 +972,18 @@ static anistar_status conflicting_stars(as_starset *ss, const double p[3], int32
  * stars' surface stars, 20 sites for ~6 neighbours on the paper's torus, cost 25% more
  * instructions: bench_mesher torus,R=10,r=2 under callgrind.)
  */
-static anistar_status star_seeds(as_starset *ss, const double p[3], int32_t gid, size_t nl,
+static anistar_status star_seeds(as_starset *ss, as_simws *w, anistar_context *ctx,
+                                 const double p[3], int32_t gid, size_t nl,
                                  int simulate, uint32_t *ep_out, size_t *nb_out) {
     anistar_status s;
-    uint32_t ep = next_epoch(ss);
+    uint32_t ep = ws_epoch(ss, w);
     size_t nb = 0;
-    ss->stamp[gid] = ep;
+    w->stamp[gid] = ep;
     for (size_t k = 0; k < nl; k++) {
-        int32_t v = ss->list[k];
-        if (ss->stamp[v] != ep) {
-            ss->stamp[v] = ep;
-            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb++, v)) != ANISTAR_OK) return s;
+        int32_t v = w->list[k];
+        if (w->stamp[v] != ep) {
+            w->stamp[v] = ep;
+            if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nb++, v)) != ANISTAR_OK) return s;
         }
         const as_star *sv = ss->stars[v];
         double y[3] = {0, 0, 0};
@@ -971,9 +1000,9 @@ static anistar_status star_seeds(as_starset *ss, const double p[3], int32_t gid,
             }
             for (int j = 0; j < 3; j++) {
                 int32_t q = g[j];
-                if (q < 8 || ss->stamp[q] == ep) continue;
-                ss->stamp[q] = ep;
-                if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb++, q)) != ANISTAR_OK)
+                if (q < 8 || w->stamp[q] == ep) continue;
+                w->stamp[q] = ep;
+                if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nb++, q)) != ANISTAR_OK)
                     return s;
             }
         }
@@ -983,25 +1012,27 @@ static anistar_status star_seeds(as_starset *ss, const double p[3], int32_t gid,
     return ANISTAR_OK;
 }
 
-/* Build star st of gid (frame mf) from the nb seeds in ss->batch (epoch ep: star_seeds),
+/* Build star st of gid (frame mf) from the nb seeds in ss->ws.batch (epoch ep: star_seeds),
  * then grow it; on env and sc (see grow_star_box). */
-static anistar_status build_seeded(as_starset *ss, const as_star_env *env, as_star_scratch *sc,
+static anistar_status build_seeded(as_starset *ss, as_simws *w, const as_star_env *env,
+                                   as_star_scratch *sc,
                                    as_star *st, const as_metric_frame *mf, int32_t gid,
                                    size_t nb, uint32_t ep) {
     anistar_status s;
-    if ((s = as_star_build_seeded(env, st, mf, gid, ss->batch, (int32_t)nb, sc)) != ANISTAR_OK)
+    if ((s = as_star_build_seeded(env, st, mf, gid, w->batch, (int32_t)nb, sc)) != ANISTAR_OK)
         return s;
-    ss->star_builds++;
-    return grow_star_box(ss, env, sc, st, mf, ep, NULL);
+    w->star_builds++;
+    return grow_star_box(ss, w, env, sc, st, mf, ep, NULL);
 }
 
-static anistar_status build_star(as_starset *ss, as_star *st, const double p[3], int32_t gid,
-                                 const as_metric_frame *mf, size_t nl, int simulate) {
+static anistar_status build_star(as_starset *ss, as_simws *w, const as_star_env *env,
+                                 as_star_scratch *sc, as_star *st, const double p[3],
+                                 int32_t gid, const as_metric_frame *mf, size_t nl, int simulate) {
     uint32_t ep;
     size_t nb;
-    anistar_status s = star_seeds(ss, p, gid, nl, simulate, &ep, &nb);
+    anistar_status s = star_seeds(ss, w, env->ctx, p, gid, nl, simulate, &ep, &nb);
     if (s != ANISTAR_OK) return s;
-    return build_seeded(ss, &ss->env, &ss->sc, st, mf, gid, nb, ep);
+    return build_seeded(ss, w, env, sc, st, mf, gid, nb, ep);
 }
 
 /* Position of triple g in the sorted facets keep[0..n), or -1. */
@@ -1028,8 +1059,8 @@ static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) 
     int32_t nkeep = st->nrf;
     if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
     uint32_t ep = next_epoch(ss);
-    for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
-    if ((s = grow_star_box(ss, &ss->env, &ss->sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK)
+    for (int32_t k = 0; k < as_star_nv(st); k++) ss->ws.stamp[as_star_vertex_gid(st, k)] = ep;
+    if ((s = grow_star_box(ss, &ss->ws, &ss->env, &ss->sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK)
         return s;
     ss->zone_regrowths++;
     for (int32_t k = 0; k < st->nrf; k++)
@@ -1069,7 +1100,7 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
     if (again) reach = st->vz_reach;
     for (int first = 1;; first = 0) {
         uint32_t ep = next_epoch(ss);
-        for (int32_t k = 0; k < as_star_nv(st); k++) ss->stamp[as_star_vertex_gid(st, k)] = ep;
+        for (int32_t k = 0; k < as_star_nv(st); k++) ss->ws.stamp[as_star_vertex_gid(st, k)] = ep;
         double h[3], lo[3], hi[3];
         as_metric_ellipsoid_box(mf, reach * (1 + 1e-9), h);
         int whole = 1; /* the reach's box holds the corner box */
@@ -1078,39 +1109,40 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
             hi[k] = c[k] + h[k];
             if (lo[k] > ss->box_lo[k] || hi[k] < ss->box_hi[k]) whole = 0;
         }
-        if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ids)) != ANISTAR_OK)
+        if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ws.ids)) != ANISTAR_OK)
             return s;
         if (again && first) {
             int fresh = 0;
-            for (size_t k = 0; k < ss->ids.n && !fresh; k++) fresh = ss->ids.ids[k] >= st->vz_n;
+            for (size_t k = 0; k < ss->ws.ids.n && !fresh; k++) fresh = ss->ws.ids.ids[k] >= st->vz_n;
             if (!fresh) return ANISTAR_OK;
         }
         /* the sites of the reach left out of the star that conflict with it */
         size_t nc = 0;
-        for (size_t k = 0; k < ss->ids.n; k++) {
-            int32_t q = ss->ids.ids[k];
-            if (ss->stamp[q] == ep) continue;
+        for (size_t k = 0; k < ss->ws.ids.n; k++) {
+            int32_t q = ss->ws.ids.ids[k];
+            if (ss->ws.stamp[q] == ep) continue;
             const double *x = ss->xyz + 3 * (size_t)q;
             if (!whole && !(as_metric_dist(mf, c, x) <= reach)) continue;
-            ss->conflict_tests++;
+            ss->ws.conflict_tests++;
             if (!as_star_conflicts_delaunay(st, mf, ss->xyz, x, q, NULL)) continue;
-            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nc++, q)) != ANISTAR_OK)
+            if ((s = push_i32(ss->ctx, &ss->ws.batch, &ss->ws.cap_batch, nc++, q)) != ANISTAR_OK)
                 return s;
         }
         if (nc == 0) return verified(ss, st, reach);
-        as_star *sp = ss->spare;
+        as_star *sp = ss->ws.spare;
+        sp->ovr = NULL; /* a real star's sites (a simulation left its candidate) */
         size_t nseed = 0;
         for (int32_t k = 0; k < as_star_nv(st); k++) {
             int32_t g = (int32_t)as_star_vertex_gid(st, k);
             if (g < 8 || g == v) continue;
-            if ((s = push_i32(ss->ctx, &ss->list, &ss->cap_list, nseed++, g)) != ANISTAR_OK)
+            if ((s = push_i32(ss->ctx, &ss->ws.list, &ss->ws.cap_list, nseed++, g)) != ANISTAR_OK)
                 return s;
         }
         for (size_t k = 0; k < nc; k++)
-            if ((s = push_i32(ss->ctx, &ss->list, &ss->cap_list, nseed++, ss->batch[k])) !=
+            if ((s = push_i32(ss->ctx, &ss->ws.list, &ss->ws.cap_list, nseed++, ss->ws.batch[k])) !=
                 ANISTAR_OK)
                 return s;
-        if ((s = as_star_build_seeded(&ss->env, sp, mf, v, ss->list, (int32_t)nseed,
+        if ((s = as_star_build_seeded(&ss->env, sp, mf, v, ss->ws.list, (int32_t)nseed,
                                       &ss->sc)) != ANISTAR_OK)
             return s;
         /* the facets of either star that the other lacks; need: the reach that decides
@@ -1203,16 +1235,16 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
     if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
     uint32_t ep = next_epoch(ss);
     size_t nb = 0;
-    ss->stamp[v] = ep;
+    ss->ws.stamp[v] = ep;
     for (int32_t k = 0; k < nkeep; k++)
         for (int j = 0; j < 3; j++) {
             int32_t q = ss->keep[k].g[j];
-            if (q < 8 || ss->stamp[q] == ep) continue;
-            ss->stamp[q] = ep;
-            if ((s = push_i32(ss->ctx, &ss->batch, &ss->cap_batch, nb, q)) != ANISTAR_OK) return s;
+            if (q < 8 || ss->ws.stamp[q] == ep) continue;
+            ss->ws.stamp[q] = ep;
+            if ((s = push_i32(ss->ctx, &ss->ws.batch, &ss->ws.cap_batch, nb, q)) != ANISTAR_OK) return s;
             nb++;
         }
-    if ((s = as_star_rebuild(&ss->env, st, &ss->mf[v], ss->batch, (int32_t)nb, &ss->sc)) !=
+    if ((s = as_star_rebuild(&ss->env, st, &ss->mf[v], ss->ws.batch, (int32_t)nb, &ss->sc)) !=
         ANISTAR_OK)
         return s;
     if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
@@ -1229,23 +1261,23 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
 }
 
 /* One task of a parallel insertion of site ss->pgid (see as_starset_insert): task 0
- * builds its star from the seeds in ss->batch (epoch ss->pep), task k > 0 inserts it
+ * builds its star from the seeds in ss->ws.batch (epoch ss->pep), task k > 0 inserts it
  * into star list[k - 1]. */
 static anistar_status insert_task(void *arg, int32_t task, int t, anistar_context *tctx) {
     as_starset *ss = arg;
     if (task == 0) {
         int32_t g = ss->pgid;
-        return build_seeded(ss, &ss->tenv[t], &ss->tsc[t], ss->stars[g], &ss->mf[g], g,
+        return build_seeded(ss, &ss->ws, &ss->tenv[t], &ss->tsc[t], ss->stars[g], &ss->mf[g], g,
                             ss->pnb, ss->pep);
     }
     int32_t k = task - 1;
-    int32_t v = ss->list[k];
+    int32_t v = ss->ws.list[k];
     as_star *sv = ss->stars[v];
     as_star_scratch *sc = &ss->tsc[t];
     as_ptask *pt = &ss->ptask[k];
     int32_t gid = ss->pgid;
     pt->was_closed = sv->closed;
-    sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+    sv->hint = ss->ws.hints[k]; /* design: walk from a tet known to conflict with p */
     anistar_status s = as_star_insert(&ss->tenv[t], sv, &ss->mf[v], &gid, 1, sc, NULL);
     if (s != ANISTAR_OK) return s;
     as_parena *A = &ss->parena[t];
@@ -1260,7 +1292,7 @@ static anistar_status insert_task(void *arg, int32_t task, int t, anistar_contex
 }
 
 /* Insert site gid into the stars list[0..nl) on the pool (their facets before, in
- * ss->ptask) and build its star from the nb seeds of ss->batch (epoch ep). */
+ * ss->ptask) and build its star from the nb seeds of ss->ws.batch (epoch ep). */
 static anistar_status insert_parallel(as_starset *ss, int32_t gid, size_t nl, size_t nb,
                                       uint32_t ep) {
     if (nl > ss->cap_ptask) {
@@ -1288,19 +1320,23 @@ static anistar_status set_threads(as_starset *ss, int n) {
     ss->tenv = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->tenv);
     ss->tsc = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->tsc);
     ss->parena = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->parena);
-    if (!ss->tenv || !ss->tsc || !ss->parena) {
+    ss->tws = as_alloc_array(ss->ctx, (size_t)n, sizeof *ss->tws);
+    if (!ss->tenv || !ss->tsc || !ss->parena || !ss->tws) {
         as_free(ss->ctx, ss->tenv, (size_t)n * sizeof *ss->tenv);
         as_free(ss->ctx, ss->tsc, (size_t)n * sizeof *ss->tsc);
         as_free(ss->ctx, ss->parena, (size_t)n * sizeof *ss->parena);
+        as_free(ss->ctx, ss->tws, (size_t)n * sizeof *ss->tws);
         ss->tenv = NULL;
         ss->tsc = NULL;
         ss->parena = NULL;
+        ss->tws = NULL;
         as_pool_free(ss->pool);
         ss->pool = NULL;
         return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (threads)");
     }
     memset(ss->tsc, 0, (size_t)n * sizeof *ss->tsc);
     memset(ss->parena, 0, (size_t)n * sizeof *ss->parena);
+    memset(ss->tws, 0, (size_t)n * sizeof *ss->tws);
     ss->nthreads = n;
     return ANISTAR_OK;
 }
@@ -1319,13 +1355,13 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     if (gid_out) *gid_out = gid;
 
     size_t nl;
-    if ((s = conflicting_stars(ss, p, gid, &nl)) != ANISTAR_OK) return s;
+    if ((s = conflicting_stars(ss, &ss->ws, ss->ctx, p, gid, &nl)) != ANISTAR_OK) return s;
     /* design: p's star is seeded from the stars as they are before p enters them (the
      * vertices of the facets whose surface balls hold p: the facets p destroys, as a
      * simulation seeds), so that it can be built while p enters them */
     uint32_t pep;
     size_t pnb;
-    if ((s = star_seeds(ss, p, gid, nl, 1, &pep, &pnb)) != ANISTAR_OK) return s;
+    if ((s = star_seeds(ss, &ss->ws, ss->ctx, p, gid, nl, 1, &pep, &pnb)) != ANISTAR_OK) return s;
     /* 1. insert p into the conflicting stars and build p's star: in parallel (each task
      * one star, on its thread's scratch; the stars are distinct, and an insertion or a
      * build reads no star but its own), then the rest in the stars' order. design:
@@ -1336,7 +1372,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     const int par = ss->pool && nl >= 1;
     if (par && (s = insert_parallel(ss, gid, nl, pnb, pep)) != ANISTAR_OK) return s;
     for (size_t k = 0; k < nl; k++) {
-        int32_t v = ss->list[k];
+        int32_t v = ss->ws.list[k];
         as_star *sv = ss->stars[v];
         const as_rfacet *old;
         int32_t nold;
@@ -1348,7 +1384,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
             was_closed = pt->was_closed;
         } else {
             was_closed = sv->closed;
-            sv->hint = ss->hints[k]; /* design: walk from a tet known to conflict with p */
+            sv->hint = ss->ws.hints[k]; /* design: walk from a tet known to conflict with p */
             if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, NULL)) !=
                 ANISTAR_OK)
                 return s;
@@ -1392,8 +1428,9 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         }
     }
     /* 2. p's star */
-    if (!par && (s = build_seeded(ss, &ss->env, &ss->sc, st, &ss->mf[gid], gid, pnb, pep)) !=
-                    ANISTAR_OK)
+    if (!par &&
+        (s = build_seeded(ss, &ss->ws, &ss->env, &ss->sc, st, &ss->mf[gid], gid, pnb, pep)) !=
+            ANISTAR_OK)
         return s;
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
@@ -1407,17 +1444,69 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     return ANISTAR_OK;
 }
 
+/* A simulation on workspace w with env and sc (the caller's or a thread's). design: the
+ * candidate takes the provisional id n (the same on every thread: the perturbation of
+ * ties sees the same ids whatever the thread count) and stays out of the points array:
+ * the spare star takes it from its override (as_star_ovr), so simulations of different
+ * candidates can run at once. */
+static anistar_status simulate_on(as_starset *ss, as_simws *w, const as_star_env *env,
+                                  as_star_scratch *sc, const double p[3],
+                                  const as_metric_frame *mf, as_star **out) {
+    anistar_status s;
+    int32_t gid = ss->n; /* provisional: the id past the last point */
+    if (!w->spare) {
+        w->spare = as_alloc(env->ctx, sizeof *w->spare);
+        if (!w->spare) return as_fail(env->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+        as_star_init(w->spare, env->ctx);
+    }
+    w->ovr.gid = gid;
+    memcpy(w->ovr.p, p, sizeof w->ovr.p);
+    w->spare->ovr = &w->ovr;
+    size_t nl;
+    if ((s = conflicting_stars(ss, w, env->ctx, p, gid, &nl)) != ANISTAR_OK) return s;
+    if ((s = build_star(ss, w, env, sc, w->spare, p, gid, mf, nl, 1)) != ANISTAR_OK) return s;
+    *out = w->spare;
+    return ANISTAR_OK;
+}
+
 anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
                                    as_star **out) {
     anistar_status s;
     if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
-    int32_t gid = ss->n; /* provisional: the slot past the last point */
-    memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
-    size_t nl;
-    if ((s = conflicting_stars(ss, p, gid, &nl)) != ANISTAR_OK) return s;
-    if ((s = build_star(ss, ss->spare, p, gid, mf, nl, 1)) != ANISTAR_OK) return s;
-    *out = ss->spare;
+    return simulate_on(ss, &ss->ws, &ss->env, &ss->sc, p, mf, out);
+}
+
+anistar_status as_starset_simulate_prepare(as_starset *ss) {
+    anistar_status s;
+    if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
+    for (int t = 0; t < ss->nthreads; t++) {
+        as_simws *w = &ss->tws[t];
+        size_t need = (size_t)ss->n + 1;
+        if (need > w->cap_stamp) {
+            size_t cap = (size_t)ss->cap, old = w->cap_stamp;
+            uint32_t *a = as_realloc(ss->ctx, w->stamp, old * sizeof *a, cap * sizeof *a);
+            if (!a) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (threads)");
+            memset(a + old, 0, (cap - old) * sizeof *a);
+            w->stamp = a;
+            w->cap_stamp = cap;
+        }
+        ss->tenv[t] = ss->env;
+        ss->tenv[t].ctx = as_pool_context(ss->pool, t);
+    }
     return ANISTAR_OK;
+}
+
+anistar_status as_starset_simulate_thread(as_starset *ss, int t, const double p[3],
+                                          const as_metric_frame *mf, as_star **out) {
+    return simulate_on(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], p, mf, out);
+}
+
+void as_starset_collect_counts(as_starset *ss) {
+    for (int t = 0; t < ss->nthreads; t++) {
+        ss->ws.conflict_tests += ss->tws[t].conflict_tests;
+        ss->ws.star_builds += ss->tws[t].star_builds;
+        ss->tws[t].conflict_tests = ss->tws[t].star_builds = 0;
+    }
 }
 
 /* ---- validator --------------------------------------------------------------------------- */

@@ -60,6 +60,27 @@ typedef struct as_parena {
     size_t n, cap;
 } as_parena;
 
+/*
+ * The search state of the star set's queries, star growth and simulations: ss->ws is the
+ * caller's; with threads each slot has its own (ss->tws), so that Pick_valid's candidates
+ * are simulated at once (docs/algorithm.md, "Threads").
+ */
+typedef struct as_simws {
+    uint32_t *stamp;         /* per id: membership marks (ss->ws: in the per-id block) */
+    size_t cap_stamp;        /* a thread's own stamp array's capacity (0 for ss->ws) */
+    uint32_t epoch;
+    as_idlist cand, ids;
+    int32_t *list, *batch;   /* changed stars; insertion batch */
+    int32_t *hints;          /* per changed star: a tet in conflict with p */
+    size_t cap_hints;
+    size_t cap_list, cap_batch;
+    double *bdist;           /* M_v distances of grow_star's candidates (batch), -1: not yet */
+    size_t cap_bdist;
+    as_star *spare;          /* a star for simulations (Pick_valid) */
+    as_star_ovr ovr;         /* the simulated point (the spare's) */
+    uint64_t conflict_tests, star_builds;
+} as_simws;
+
 /* A facet of a star that is new or whose surface ball moved (the refiner's queue feed). */
 typedef struct as_fevent {
     as_gid star;
@@ -120,16 +141,9 @@ typedef struct as_starset {
 
     /* scratch */
     as_star_scratch sc;
-    as_idlist cand, ids, fids; /* fids: the feature-size queries' own */
-    int32_t *list, *batch;   /* changed stars; insertion batch */
-    int32_t *hints;          /* per changed star: a tet in conflict with p */
-    size_t cap_hints;
-    size_t cap_list, cap_batch;
-    double *bdist;           /* M_v distances of grow_star's candidates (batch), -1: not yet */
-    size_t cap_bdist;
-    uint32_t *stamp;         /* per id: membership marks */
-    uint32_t epoch;
-    as_star *spare;          /* a star for simulations (Pick_valid) */
+    as_idlist fids;          /* the feature-size queries' own */
+    as_simws ws;             /* the caller's search state */
+    as_simws *tws;           /* per thread slot: its own (Pick_valid's simulations) */
     int32_t *rebuild;        /* stars to compact after the current insertion */
     size_t nrebuild, cap_rebuild;
     int32_t *regrow;         /* stars whose zone grew in the current insertion ... */
@@ -154,7 +168,7 @@ typedef struct as_starset {
     uint32_t pep;            /* and their epoch */
 
     /* statistics */
-    uint64_t star_updates, star_builds, conflict_tests, star_rebuilds, zone_regrowths;
+    uint64_t star_updates, star_rebuilds, zone_regrowths; /* builds, conflict tests: ws */
 } as_starset;
 
 /* The key of a sorted triple. */
@@ -228,6 +242,14 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
  * Simulate p's star without changing anything: fills ss->spare with the star p would
  * get (p given the provisional id ss->n, its frame *mf). Used by Pick_valid.
  */
+/* Threads: as_starset_simulate_prepare once before simulations on the threads (it sizes
+ * their workspaces), then as_starset_simulate_thread(ss, t, ...) on thread slot t gives
+ * what as_starset_simulate gives (the star is slot t's spare); as_starset_collect_counts
+ * after, for the statistics. */
+anistar_status as_starset_simulate_prepare(as_starset *ss);
+anistar_status as_starset_simulate_thread(as_starset *ss, int t, const double p[3],
+                                          const as_metric_frame *mf, as_star **out);
+void as_starset_collect_counts(as_starset *ss);
 anistar_status as_starset_simulate(as_starset *ss, const double p[3], const as_metric_frame *mf,
                                    as_star **out);
 
@@ -248,6 +270,9 @@ anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lf
 
 /* Evaluate the metric at p into a frame. EINVAL when the field fails or M is not SPD. */
 anistar_status as_starset_metric(as_starset *ss, const double p[3], as_metric_frame *mf);
+/* The same with errors in ctx, writing nothing of ss (a thread's). */
+anistar_status as_starset_metric_in(const as_starset *ss, anistar_context *ctx, const double p[3],
+                                    as_metric_frame *mf);
 
 /* The table entry of key, or NULL. */
 as_ftab_entry *as_starset_lookup(const as_starset *ss, as_fkey key);

@@ -163,9 +163,7 @@ typedef struct as_starset {
     as_parena *parena;
     as_ptask *ptask;
     size_t cap_ptask;
-    int32_t pgid;            /* the site being inserted, */
-    size_t pnb;              /* the seeds of its star in batch, */
-    uint32_t pep;            /* and their epoch */
+    int32_t pgid;            /* the site being inserted */
 
     /* statistics */
     uint64_t star_updates, star_rebuilds, zone_regrowths; /* builds, conflict tests: ws */

@@ -11,7 +11,7 @@ b=${1:?usage: layers_check.sh BUILD}
 command -v nm >/dev/null 2>&1 || { echo "layers_check: nm is missing (binutils)"; exit 1; }
 rank() {
     case "$1" in
-    */obj/lib/core.o) echo 0 ;;
+    */obj/lib/core.o | */obj/lib/pool.o) echo 0 ;;
     */obj/lib/geom/*) echo 1 ;;
     */obj/lib/mesh/*) echo 2 ;;
     */obj/lib/io/*) echo 3 ;;

@@ -10,7 +10,8 @@
 # One run at a time (the largest takes minutes and about 6 GB).
 # Usage: bench/scaling.sh [ANISTAR [SIZES]]   (default build/anistar; SIZES: small = up
 # to 10^5, medium = up to 10^6 (the default), all = up to 2·10^6 (about 9 minutes and
-# 6 GB more), or a quoted list of r0 values)
+# 6 GB more), or a quoted list of r0 values); THREADS=N in the environment passes
+# --threads N (default: the tool's, every online core)
 set -u
 tool=${1:-build/anistar}
 sizes=${2:-medium}
@@ -30,13 +31,14 @@ num() { # num KEY FILE: the first number after "KEY": in a JSON file
     sed -n "s/^ *\"$1\": \([-0-9.eE+]*\).*/\1/p" "$2" | head -n 1
 }
 
-echo "<!-- bench/scaling.sh $tool $sizes: $(date -u '+%Y-%m-%d %H:%M UTC'), $(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | sed 's/.*: //'), $(nproc) cores -->"
+threads=${THREADS:-}
+echo "<!-- bench/scaling.sh $tool $sizes${threads:+ THREADS=$threads}: $(date -u '+%Y-%m-%d %H:%M UTC'), $(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | sed 's/.*: //'), $(nproc) cores -->"
 echo '| r0 | vertices | wall s | µs / vertex | peak bytes / vertex | max RSS bytes / vertex | exit |'
 echo '|---|---|---|---|---|---|---|'
 for r0 in $list; do
     /usr/bin/time -v -o "$tmp/time" "$tool" mesh --builtin torus,R=10,r=1 --metric curvature \
-        --r0 "$r0" --gamma0 1.5 --max-vertices 0 -o "$tmp/o.mesh" --stats "$tmp/o.json" \
-        --quiet 2>"$tmp/err"
+        --r0 "$r0" --gamma0 1.5 --max-vertices 0 ${threads:+--threads "$threads"} \
+        -o "$tmp/o.mesh" --stats "$tmp/o.json" --quiet 2>"$tmp/err"
     rc=$?
     wall=$(sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$tmp/time" |
         awk -F: '{ s = 0; for (i = 1; i <= NF; i++) s = s * 60 + $i; print s }')

@@ -1087,9 +1087,11 @@ static anistar_status verified(as_starset *ss, as_star *st, double reach) {
  * of the spare beyond the reach is undecided and the reach is doubled past it (up to the
  * corner box, where every facet is decided).
  */
-static anistar_status verify_star(as_starset *ss, int32_t v, double reach, double diag,
+static anistar_status verify_star(as_starset *ss, as_simws *w, const as_star_env *env,
+                                  as_star_scratch *sc, int32_t v, double reach, double diag,
                                   int *wrong) {
     anistar_status s;
+    anistar_context *ctx = env->ctx;
     as_star *st = ss->stars[v];
     const as_metric_frame *mf = &ss->mf[v];
     const double *c = ss->xyz + 3 * (size_t)v;
@@ -1099,8 +1101,8 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
     const int again = st->vz_reach > 0 && st->vz_version == st->version && reach <= st->vz_reach;
     if (again) reach = st->vz_reach;
     for (int first = 1;; first = 0) {
-        uint32_t ep = next_epoch(ss);
-        for (int32_t k = 0; k < as_star_nv(st); k++) ss->ws.stamp[as_star_vertex_gid(st, k)] = ep;
+        uint32_t ep = ws_epoch(ss, w);
+        for (int32_t k = 0; k < as_star_nv(st); k++) w->stamp[as_star_vertex_gid(st, k)] = ep;
         double h[3], lo[3], hi[3];
         as_metric_ellipsoid_box(mf, reach * (1 + 1e-9), h);
         int whole = 1; /* the reach's box holds the corner box */
@@ -1109,41 +1111,46 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
             hi[k] = c[k] + h[k];
             if (lo[k] > ss->box_lo[k] || hi[k] < ss->box_hi[k]) whole = 0;
         }
-        if ((s = as_kdtree_box_any(ss->ctx, ss->kd, lo, hi, 0, &ss->ws.ids)) != ANISTAR_OK)
+        if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &w->ids)) != ANISTAR_OK)
             return s;
         if (again && first) {
             int fresh = 0;
-            for (size_t k = 0; k < ss->ws.ids.n && !fresh; k++) fresh = ss->ws.ids.ids[k] >= st->vz_n;
+            for (size_t k = 0; k < w->ids.n && !fresh; k++) fresh = w->ids.ids[k] >= st->vz_n;
             if (!fresh) return ANISTAR_OK;
         }
         /* the sites of the reach left out of the star that conflict with it */
         size_t nc = 0;
-        for (size_t k = 0; k < ss->ws.ids.n; k++) {
-            int32_t q = ss->ws.ids.ids[k];
-            if (ss->ws.stamp[q] == ep) continue;
+        for (size_t k = 0; k < w->ids.n; k++) {
+            int32_t q = w->ids.ids[k];
+            if (w->stamp[q] == ep) continue;
             const double *x = ss->xyz + 3 * (size_t)q;
             if (!whole && !(as_metric_dist(mf, c, x) <= reach)) continue;
-            ss->ws.conflict_tests++;
+            w->conflict_tests++;
             if (!as_star_conflicts_delaunay(st, mf, ss->xyz, x, q, NULL)) continue;
-            if ((s = push_i32(ss->ctx, &ss->ws.batch, &ss->ws.cap_batch, nc++, q)) != ANISTAR_OK)
+            if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nc++, q)) != ANISTAR_OK)
                 return s;
         }
         if (nc == 0) return verified(ss, st, reach);
-        as_star *sp = ss->ws.spare;
+        if (!w->spare) {
+            w->spare = as_alloc(ctx, sizeof *w->spare);
+            if (!w->spare) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+            as_star_init(w->spare, ctx);
+        }
+        as_star *sp = w->spare;
         sp->ovr = NULL; /* a real star's sites (a simulation left its candidate) */
         size_t nseed = 0;
         for (int32_t k = 0; k < as_star_nv(st); k++) {
             int32_t g = (int32_t)as_star_vertex_gid(st, k);
             if (g < 8 || g == v) continue;
-            if ((s = push_i32(ss->ctx, &ss->ws.list, &ss->ws.cap_list, nseed++, g)) != ANISTAR_OK)
+            if ((s = push_i32(ctx, &w->list, &w->cap_list, nseed++, g)) != ANISTAR_OK)
                 return s;
         }
         for (size_t k = 0; k < nc; k++)
-            if ((s = push_i32(ss->ctx, &ss->ws.list, &ss->ws.cap_list, nseed++, ss->ws.batch[k])) !=
+            if ((s = push_i32(ctx, &w->list, &w->cap_list, nseed++, w->batch[k])) !=
                 ANISTAR_OK)
                 return s;
-        if ((s = as_star_build_seeded(&ss->env, sp, mf, v, ss->ws.list, (int32_t)nseed,
-                                      &ss->sc)) != ANISTAR_OK)
+        if ((s = as_star_build_seeded(env, sp, mf, v, w->list, (int32_t)nseed,
+                                      sc)) != ANISTAR_OK)
             return s;
         /* the facets of either star that the other lacks; need: the reach that decides
          * every such difference (0: none undecided). A facet of the star that is not a
@@ -1155,7 +1162,7 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
                 if (as_star_find(b, a->rf[k].g) >= 0) continue;
                 int in_dt;
                 double ext;
-                if ((s = as_star_facet_extent(&ss->env, sp, mf, &ss->sc, a->rf[k].g, &in_dt,
+                if ((s = as_star_facet_extent(env, sp, mf, sc, a->rf[k].g, &in_dt,
                                                 &ext)) !=
                     ANISTAR_OK)
                     return s;
@@ -1188,6 +1195,71 @@ static anistar_status verify_star(as_starset *ss, int32_t v, double reach, doubl
  * the refinement goes on. A per-star record (version, sites, reach) skips the stars
  * unchanged since they were found right.
  */
+/* as_starset_verify_zones on the pool: the selected stars are checked in parallel, each
+ * on its thread's workspace (a check reads only its star and the sites), then the wrong
+ * ones are opened and regrown in the stars' order, as the serial loop does (a regrowth
+ * changes only its own star). */
+typedef struct vz_job {
+    as_starset *ss;
+    int32_t *sel;
+    uint8_t *wrong;
+    double reach, diag;
+} vz_job;
+
+static anistar_status vz_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)tctx;
+    vz_job *J = arg;
+    as_starset *ss = J->ss;
+    int wrong = 0;
+    anistar_status s = verify_star(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], J->sel[k],
+                                   J->reach, J->diag, &wrong);
+    J->wrong[k] = (uint8_t)wrong;
+    return s;
+}
+
+static anistar_status verify_zones_pool(as_starset *ss, int (*need)(void *, int32_t), void *arg,
+                                        double diag, size_t *opened) {
+    anistar_status s;
+    size_t nsel = 0, cap = 0;
+    int32_t *sel = NULL;
+    uint8_t *wrong = NULL;
+    for (int32_t v = ss->first_site; v < ss->n; v++) {
+        as_star *st = ss->stars[v];
+        if (!st || !AS_STAR_BALL_ZONE(st)) continue;
+        if (need && !need(arg, v)) continue;
+        if ((s = push_i32(ss->ctx, &sel, &cap, nsel, v)) != ANISTAR_OK) goto done;
+        nsel++;
+    }
+    if (nsel == 0) return ANISTAR_OK;
+    wrong = as_alloc(ss->ctx, nsel);
+    if (!wrong) {
+        s = as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (zone check)");
+        goto done;
+    }
+    double rmax = 0;
+    for (int32_t u = ss->first_site; u < ss->n; u++)
+        for (int32_t k = 0; ss->stars[u] && k < ss->stars[u]->nrf; k++)
+            if (ss->stars[u]->rf[k].r > rmax) rmax = ss->stars[u]->rf[k].r;
+    if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) goto done;
+    vz_job J = {ss, sel, wrong, AS_STARSET_VERIFY_REACH * rmax, diag};
+    s = as_pool_run(ss->pool, (int32_t)nsel, vz_task, &J);
+    as_starset_collect_counts(ss);
+    if (s != ANISTAR_OK) goto done;
+    for (size_t k = 0; k < nsel; k++) {
+        if (!wrong[k]) continue;
+        int32_t v = sel[k];
+        as_star *st = ss->stars[v];
+        (*opened)++;
+        st->zfull = 1;
+        as_star_rezone(st, ss->xyz, &ss->mf[v]);
+        if ((s = regrow_star(ss, v, NULL)) != ANISTAR_OK) goto done;
+    }
+done:
+    as_free(ss->ctx, sel, cap * sizeof *sel);
+    as_free(ss->ctx, wrong, nsel);
+    return s;
+}
+
 anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
                                        size_t *opened) {
     anistar_status s;
@@ -1199,6 +1271,7 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
      * an x: within 2 |x - v| <= 4 r_max of v */
     double reach = -1; /* computed at the first star selected */
     const double diag = 4 * sqrt(3.0) * ss->surf->radius; /* the corner box's diagonal */
+    if (ss->pool) return verify_zones_pool(ss, need, arg, diag, opened);
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         as_star *st = ss->stars[v];
         if (!st || !AS_STAR_BALL_ZONE(st)) continue;
@@ -1211,7 +1284,9 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
             reach = AS_STARSET_VERIFY_REACH * rmax;
         }
         int wrong = 0;
-        if ((s = verify_star(ss, v, reach, diag, &wrong)) != ANISTAR_OK) return s;
+        if ((s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, v, reach, diag, &wrong)) !=
+            ANISTAR_OK)
+            return s;
         if (!wrong) continue;
         /* the ball zone missed sites that change v's surface star: v takes its whole
          * Delaunay region from now on, and is grown over it */

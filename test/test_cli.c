@@ -179,7 +179,7 @@ static void test_runtime_errors(void **state) {
         {"probe", "--builtin", "sphere", "--metric", "sol:m.sol", "--at", "1,0,0", NULL},
         /* mesh: no zero inside the bounding sphere */
         {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "-o",
-         "/tmp/anistar_cli_nosurface.off", NULL},
+         AS_TEST_BUILD_DIR "/anistar_cli_nosurface.off", NULL},
     };
     const char *msgs[] = {"no", "not finite", "bounding sphere", "cannot open 'model.off'",
                           "not supported yet", "no"};
@@ -201,12 +201,12 @@ static void test_runtime_errors(void **state) {
 static void test_surface_errors_are_surface_errors(void **state) {
     (void)state;
     const char *cases[][12] = {
-        {"mesh", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,1", "-o", "/tmp/anistar_cli_se.off", NULL},
+        {"mesh", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,1", "-o", AS_TEST_BUILD_DIR "/anistar_cli_se.off", NULL},
         {"mesh", "--implicit", "x^2+y^2+z^2-4", "--bound", "0,0,0,1", "--metric", "euclidean", "-o",
-         "/tmp/anistar_cli_se.off", NULL},
-        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,1", "-o", "/tmp/anistar_cli_se.off", NULL},
+         AS_TEST_BUILD_DIR "/anistar_cli_se.off", NULL},
+        {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,1", "-o", AS_TEST_BUILD_DIR "/anistar_cli_se.off", NULL},
         {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,1", "--metric", "hessian:x^2", "-o",
-         "/tmp/anistar_cli_se.off", NULL},
+         AS_TEST_BUILD_DIR "/anistar_cli_se.off", NULL},
     };
     const char *want[] = {"must lie strictly inside the bounding sphere",
                           "must lie strictly inside the bounding sphere",

@@ -56,8 +56,8 @@ static int off_counts(const char *path, long *nv, long *nf) {
 
 static void test_mesh_sphere(void **state) {
     (void)state;
-    const char *off = "/tmp/anistar_clim_s.off", *vtu = "/tmp/anistar_clim_s.vtu",
-               *sol = "/tmp/anistar_clim_s.sol", *json = "/tmp/anistar_clim_s.json";
+    const char *off = AS_TEST_BUILD_DIR "/anistar_clim_s.off", *vtu = AS_TEST_BUILD_DIR "/anistar_clim_s.vtu",
+               *sol = AS_TEST_BUILD_DIR "/anistar_clim_s.sol", *json = AS_TEST_BUILD_DIR "/anistar_clim_s.json";
     unlink(off), unlink(vtu), unlink(sol), unlink(json);
     const char *args[] = {"mesh", "--builtin", "sphere", "--metric", "euclidean", "--r0", "0.3",
                           "--seed", "7", "-o", off, "-o", vtu, "--sol", sol, "--stats", json,
@@ -130,8 +130,8 @@ static void test_mesh_sphere(void **state) {
     assert_string_equal(r->out, "");
     /* render reads our .vtu (its metric) and --sol alone implies --color anisotropy: the
      * three images are the same bytes */
-    const char *png[3] = {"/tmp/anistar_clim_1.png", "/tmp/anistar_clim_2.png",
-                          "/tmp/anistar_clim_3.png"};
+    const char *png[3] = {AS_TEST_BUILD_DIR "/anistar_clim_1.png", AS_TEST_BUILD_DIR "/anistar_clim_2.png",
+                          AS_TEST_BUILD_DIR "/anistar_clim_3.png"};
     const char *r1[] = {"render", vtu, "-o", png[0], "--color", "anisotropy", "--size", "96x64",
                         NULL};
     const char *r2[] = {"render", off, "-o", png[1], "--sol", sol, "--size", "96x64", NULL};
@@ -160,7 +160,7 @@ static void test_mesh_sphere(void **state) {
 
 static void test_mesh_limit(void **state) {
     (void)state;
-    const char *off = "/tmp/anistar_clim_l.off", *json = "/tmp/anistar_clim_l.json";
+    const char *off = AS_TEST_BUILD_DIR "/anistar_clim_l.off", *json = AS_TEST_BUILD_DIR "/anistar_clim_l.json";
     unlink(off), unlink(json);
     /* the paper's torus at r0 0.5, gamma0 2 without the anisotropy cap: estimated at about
      * 1,500 vertices (rule 1's distortion bound makes it 7,300), so a limit of 2,000 lets
@@ -233,21 +233,21 @@ static void test_runtime_errors(void **state) {
     (void)state;
     const char *cases[][12] = {
         /* a mesh file that does not exist */
-        {"mesh", "/tmp/anistar_clim_missing.off", "-o", "/tmp/anistar_clim_e.off", NULL},
+        {"mesh", AS_TEST_BUILD_DIR "/anistar_clim_missing.off", "-o", AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL},
         /* no zero of f inside the bounding sphere (ENOSURFACE) */
         {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "-o",
-         "/tmp/anistar_clim_e.off", NULL},
+         AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL},
     };
     const char *msgs[] = {"anistar_clim_missing.off", "no"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        unlink("/tmp/anistar_clim_e.off");
+        unlink(AS_TEST_BUILD_DIR "/anistar_clim_e.off");
         run(cases[i], r);
         if (r->status != 1) fail_msg("case %zu: exit %d, stderr '%s'", i, r->status, r->err);
         assert_one_line(r);
         if (!strstr(r->err, msgs[i])) fail_msg("case %zu: '%s' lacks '%s'", i, r->err, msgs[i]);
         assert_string_equal(r->out, "");
-        assert_true(access("/tmp/anistar_clim_e.off", F_OK) != 0); /* nothing written */
+        assert_true(access(AS_TEST_BUILD_DIR "/anistar_clim_e.off", F_OK) != 0); /* nothing written */
     }
     test_free(r);
 }

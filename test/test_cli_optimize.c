@@ -43,8 +43,8 @@ static void off_counts(const char *path, long *nv, long *nf) {
 
 static void test_mesh_optimize(void **state) {
     (void)state;
-    const char *off[2] = {"/tmp/anistar_cliopt_0.off", "/tmp/anistar_cliopt_1.off"};
-    const char *json[2] = {"/tmp/anistar_cliopt_0.json", "/tmp/anistar_cliopt_1.json"};
+    const char *off[2] = {AS_TEST_BUILD_DIR "/anistar_cliopt_0.off", AS_TEST_BUILD_DIR "/anistar_cliopt_1.off"};
+    const char *json[2] = {AS_TEST_BUILD_DIR "/anistar_cliopt_0.json", AS_TEST_BUILD_DIR "/anistar_cliopt_1.json"};
     char *js[2];
     long nv[2], nf[2];
     for (int r = 0; r < 2; r++) {
@@ -106,7 +106,7 @@ static void test_mesh_optimize(void **state) {
 static void test_optimize_flag(void **state) {
     (void)state;
     const char *args[] = {"mesh", "--builtin", "sphere", "--optimize", "yes", "-o",
-                          "/tmp/anistar_cliopt_x.off", NULL};
+                          AS_TEST_BUILD_DIR "/anistar_cliopt_x.off", NULL};
     tu_run_result res;
     tu_run(TOOL, args, &res);
     assert_int_equal(res.status, 2);

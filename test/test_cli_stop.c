@@ -34,7 +34,7 @@
 #include <unistd.h>
 
 #define TOOL AS_TEST_BUILD_DIR "/anistar"
-#define TMP "/tmp/anistar_clistop_"
+#define TMP AS_TEST_BUILD_DIR "/anistar_clistop_"
 
 /* The long run: well over 10 s to finish on any machine we test on. */
 #define LONG_RUN "mesh", "--builtin", "torus", "--metric", "curvature", "--r0", "0.02"

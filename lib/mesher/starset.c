@@ -1195,10 +1195,7 @@ static anistar_status verify_star(as_starset *ss, as_simws *w, const as_star_env
  * the refinement goes on. A per-star record (version, sites, reach) skips the stars
  * unchanged since they were found right.
  */
-/* as_starset_verify_zones on the pool: the selected stars are checked in parallel, each
- * on its thread's workspace (a check reads only its star and the sites), then the wrong
- * ones are opened and regrown in the stars' order, as the serial loop does (a regrowth
- * changes only its own star). */
+/* One star of the zone check (as_starset_verify_zones) on thread slot t. */
 typedef struct vz_job {
     as_starset *ss;
     int32_t *sel;
@@ -1217,9 +1214,10 @@ static anistar_status vz_task(void *arg, int32_t k, int t, anistar_context *tctx
     return s;
 }
 
-static anistar_status verify_zones_pool(as_starset *ss, int (*need)(void *, int32_t), void *arg,
-                                        double diag, size_t *opened) {
-    anistar_status s;
+anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
+                                       size_t *opened) {
+    anistar_status s = ANISTAR_OK;
+    *opened = 0;
     size_t nsel = 0, cap = 0;
     int32_t *sel = NULL;
     uint8_t *wrong = NULL;
@@ -1230,23 +1228,43 @@ static anistar_status verify_zones_pool(as_starset *ss, int (*need)(void *, int3
         if ((s = push_i32(ss->ctx, &sel, &cap, nsel, v)) != ANISTAR_OK) goto done;
         nsel++;
     }
-    if (nsel == 0) return ANISTAR_OK;
+    if (nsel == 0) goto done;
     wrong = as_alloc(ss->ctx, nsel);
     if (!wrong) {
         s = as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (zone check)");
         goto done;
     }
+    /* the reach: a point x of S in v's cell has v as its nearest site, so |x - v| is at
+     * most the distance from x to the sample, which the size rule bounds by the largest
+     * surface radius r_max (up to the distortion between neighbouring metrics, taken as
+     * 2); a site that changes v's surface star lies in a ball through v centred at such
+     * an x: within 2 |x - v| <= 4 r_max of v */
     double rmax = 0;
     for (int32_t u = ss->first_site; u < ss->n; u++)
         for (int32_t k = 0; ss->stars[u] && k < ss->stars[u]->nrf; k++)
             if (ss->stars[u]->rf[k].r > rmax) rmax = ss->stars[u]->rf[k].r;
-    if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) goto done;
+    const double diag = 4 * sqrt(3.0) * ss->surf->radius; /* the corner box's diagonal */
     vz_job J = {ss, sel, wrong, AS_STARSET_VERIFY_REACH * rmax, diag};
-    s = as_pool_run(ss->pool, (int32_t)nsel, vz_task, &J);
-    as_starset_collect_counts(ss);
+    /* design: every selected star is checked first (in parallel with threads, each on its
+     * thread's workspace: a check reads only its star and the sites), then the wrong ones
+     * are opened and regrown in the stars' order (a regrowth changes only its own star,
+     * so no check depends on another's regrowth) */
+    if (ss->pool) {
+        if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) goto done;
+        s = as_pool_run(ss->pool, (int32_t)nsel, vz_task, &J);
+        as_starset_collect_counts(ss);
+    } else {
+        for (size_t k = 0; k < nsel && s == ANISTAR_OK; k++) {
+            int w = 0;
+            s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, sel[k], J.reach, diag, &w);
+            wrong[k] = (uint8_t)w;
+        }
+    }
     if (s != ANISTAR_OK) goto done;
     for (size_t k = 0; k < nsel; k++) {
         if (!wrong[k]) continue;
+        /* the ball zone missed sites that change v's surface star: v takes its whole
+         * Delaunay region from now on, and is grown over it */
         int32_t v = sel[k];
         as_star *st = ss->stars[v];
         (*opened)++;
@@ -1258,44 +1276,6 @@ done:
     as_free(ss->ctx, sel, cap * sizeof *sel);
     as_free(ss->ctx, wrong, nsel);
     return s;
-}
-
-anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
-                                       size_t *opened) {
-    anistar_status s;
-    *opened = 0;
-    /* the reach: a point x of S in v's cell has v as its nearest site, so |x - v| is at
-     * most the distance from x to the sample, which the size rule bounds by the largest
-     * surface radius r_max (up to the distortion between neighbouring metrics, taken as
-     * 2); a site that changes v's surface star lies in a ball through v centred at such
-     * an x: within 2 |x - v| <= 4 r_max of v */
-    double reach = -1; /* computed at the first star selected */
-    const double diag = 4 * sqrt(3.0) * ss->surf->radius; /* the corner box's diagonal */
-    if (ss->pool) return verify_zones_pool(ss, need, arg, diag, opened);
-    for (int32_t v = ss->first_site; v < ss->n; v++) {
-        as_star *st = ss->stars[v];
-        if (!st || !AS_STAR_BALL_ZONE(st)) continue;
-        if (need && !need(arg, v)) continue;
-        if (reach < 0) {
-            double rmax = 0;
-            for (int32_t u = ss->first_site; u < ss->n; u++)
-                for (int32_t k = 0; ss->stars[u] && k < ss->stars[u]->nrf; k++)
-                    if (ss->stars[u]->rf[k].r > rmax) rmax = ss->stars[u]->rf[k].r;
-            reach = AS_STARSET_VERIFY_REACH * rmax;
-        }
-        int wrong = 0;
-        if ((s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, v, reach, diag, &wrong)) !=
-            ANISTAR_OK)
-            return s;
-        if (!wrong) continue;
-        /* the ball zone missed sites that change v's surface star: v takes its whole
-         * Delaunay region from now on, and is grown over it */
-        (*opened)++;
-        st->zfull = 1;
-        as_star_rezone(st, ss->xyz, &ss->mf[v]);
-        if ((s = regrow_star(ss, v, NULL)) != ANISTAR_OK) return s;
-    }
-    return ANISTAR_OK;
 }
 
 /* Rebuild star v from its neighbours and the kd-tree (as a new star), then apply the
@@ -1335,6 +1315,15 @@ static anistar_status compact_star(as_starset *ss, int32_t v) {
     return apply_diff(ss, v, ss->keep, nkeep);
 }
 
+/* Each thread slot's environment: the star set's (its points may have moved since:
+ * grow_points) with the slot's context. */
+static void thread_envs(as_starset *ss) {
+    for (int t = 0; t < ss->nthreads; t++) {
+        ss->tenv[t] = ss->env;
+        ss->tenv[t].ctx = as_pool_context(ss->pool, t);
+    }
+}
+
 /* One task of a parallel insertion of site ss->pgid (see as_starset_insert): insert it
  * into star list[k]. */
 static anistar_status insert_task(void *arg, int32_t k, int t, anistar_context *tctx) {
@@ -1366,11 +1355,8 @@ static anistar_status insert_parallel(as_starset *ss, int32_t gid, size_t nl) {
         if (as_grow(ss->ctx, (void **)&ss->ptask, &ss->cap_ptask, nl, sizeof *ss->ptask))
             return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
     }
-    for (int t = 0; t < ss->nthreads; t++) {
-        ss->tenv[t] = ss->env; /* the points may have moved (grow_points) */
-        ss->tenv[t].ctx = as_pool_context(ss->pool, t);
-        ss->parena[t].n = 0;
-    }
+    thread_envs(ss);
+    for (int t = 0; t < ss->nthreads; t++) ss->parena[t].n = 0;
     ss->pgid = gid;
     return as_pool_run(ss->pool, (int32_t)nl, insert_task, ss);
 }
@@ -1550,9 +1536,8 @@ anistar_status as_starset_simulate_prepare(as_starset *ss) {
             w->stamp = a;
             w->cap_stamp = cap;
         }
-        ss->tenv[t] = ss->env;
-        ss->tenv[t].ctx = as_pool_context(ss->pool, t);
     }
+    thread_envs(ss);
     return ANISTAR_OK;
 }
 

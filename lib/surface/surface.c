@@ -684,10 +684,12 @@ anistar_status as_fsurface_crossing_full(anistar_context *ctx, const as_surface 
 /*
  * Newton steps along the gradient from x (in place) until |f|/|grad f| <= tol.
  * *ok = 1 on convergence; otherwise x is the best iterate. A non-finite value at the
- * start is an error; at trial points it only rejects the step.
+ * start is an error; at trial points it only rejects the step. On convergence f and its
+ * gradient at x are returned in fx and gx when not NULL (the closest-point loop needs
+ * them: evaluating them again was an eighth of a projection's evaluations).
  */
-static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, double x[3],
-                                int *ok) {
+static anistar_status pj_newton_fg(anistar_context *ctx, const as_surface *s, double x[3],
+                                   int *ok, double *fx, double gx[3]) {
     *ok = 0;
     double g[3];
     double f = s->ops->eval(s, x, 1, g, NULL);
@@ -699,6 +701,8 @@ static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, doubl
         double gn = sqrt(gn2);
         if (fabs(f) <= s->tol * gn) {
             *ok = 1;
+            if (fx) *fx = f;
+            if (gx) memcpy(gx, g, sizeof g);
             return ANISTAR_OK;
         }
         double len = fabs(f) / gn, lam = len > maxstep ? maxstep / len : 1.0;
@@ -717,6 +721,11 @@ static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, doubl
         if (!accepted) return ANISTAR_OK;
     }
     return ANISTAR_OK;
+}
+
+static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, double x[3],
+                                int *ok) {
+    return pj_newton_fg(ctx, s, x, ok, NULL, NULL);
 }
 
 /* Bracketed fallback: the crossing nearest x along a few lines through x. */
@@ -811,11 +820,12 @@ anistar_status as_fsurface_project(anistar_context *ctx, const as_surface *s, co
             double y[3], gy[3];
             for (int i = 0; i < 3; i++) y[i] = x[i] + lam * t[i];
             int ok3;
-            st = pj_newton(ctx, s, y, &ok3);
+            double fy;
+            st = pj_newton_fg(ctx, s, y, &ok3, &fy, gy);
             if (st) return st;
             if (!ok3) continue;
             double dy = sqrt(v3_dist2(p, y));
-            double fy = s->ops->eval(s, y, 1, gy, NULL), gyn = v3_norm(gy);
+            double gyn = v3_norm(gy);
             if (!isfinite(fy) || !(gyn > 0) || !isfinite(gyn)) continue;
             double w[3] = {p[0] - y[0], p[1] - y[1], p[2] - y[2]}, wn = v3_dot(w, gy) / gyn;
             double wt[3] = {w[0] - wn * gy[0] / gyn, w[1] - wn * gy[1] / gyn,

@@ -354,6 +354,59 @@ static void test_skull(void **state) {
     anistar_context_free(ctx);
 }
 
+/* The crossing oracle scans the chord's pieces nearest the reference first and stops when
+ * no unscanned piece can hold a nearer crossing (issue 13); it must give exactly the answer
+ * of the original order (every piece from a to b, then the candidates by distance), which
+ * as_fsurface_crossing_full computes. Segments through points of the skull's surface, long
+ * enough to be clipped by the bounding sphere and cut into up to 64 pieces, with
+ * references near the crossing (as the mesher's facet circumcenters), off the line, and at
+ * an end. */
+static void test_crossing_order(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    char path[512];
+    data_path(path, sizeof path, "skull_2.9.inr");
+    as_surface *s;
+    assert_int_equal(as_image_surface_read(ctx, path, 2.9, 1, &s), ANISTAR_OK);
+    as_point_sample smp;
+    assert_int_equal(as_surface_sample(ctx, s, 64, &smp), ANISTAR_OK);
+    tu_rng r = {13};
+    const double R = s->radius;
+    int found_n = 0, multi = 0;
+    for (size_t i = 0; i < smp.n; i++)
+        for (int t = 0; t < 8; t++) {
+            const double *p = smp.points + 3 * i;
+            double u[3], w[3], a[3], b[3], ref[3];
+            rand_unit(&r, u);
+            rand_unit(&r, w);
+            double t1 = R * (t < 4 ? 0.02 : 0.5) * (0.1 + tu_rng_unit(&r));
+            double t2 = R * (t % 2 ? 1.5 : 0.05) * (0.1 + tu_rng_unit(&r));
+            double off = (t % 4 == 3 ? 0.3 : 0.01) * R * tu_rng_unit(&r);
+            for (int k = 0; k < 3; k++) {
+                a[k] = p[k] - t1 * u[k];
+                b[k] = p[k] + t2 * u[k];
+                ref[k] = t == 6 ? a[k] : p[k] + off * w[k];
+            }
+            int f1 = -1, f2 = -1;
+            double x1[3] = {0, 0, 0}, x2[3] = {0, 0, 0};
+            assert_int_equal(as_surface_crossing(ctx, s, a, b, ref, &f1, x1), ANISTAR_OK);
+            assert_int_equal(as_fsurface_crossing_full(ctx, s, a, b, ref, &f2, x2), ANISTAR_OK);
+            assert_int_equal(f1, f2);
+            assert_memory_equal(x1, x2, sizeof x1);
+            found_n += f1;
+            /* a segment that meets S more than once: the nearest one must be chosen */
+            double fa, fb;
+            assert_int_equal(as_surface_eval(ctx, s, a, 0, &fa, NULL, NULL), ANISTAR_OK);
+            assert_int_equal(as_surface_eval(ctx, s, b, 0, &fb, NULL, NULL), ANISTAR_OK);
+            if (f1 && (fa < 0) == (fb < 0)) multi++;
+        }
+    assert_true(found_n > (int)smp.n * 6);
+    assert_true(multi > 20);
+    as_surface_sample_free(ctx, &smp);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 static void test_brain(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
@@ -626,7 +679,7 @@ int main(void) {
         cmocka_unit_test(test_synthetic_ball), cmocka_unit_test(test_skull),
         cmocka_unit_test(test_brain),          cmocka_unit_test(test_errors_and_api),
         cmocka_unit_test(test_alloc_failures), cmocka_unit_test(test_otsu),
-        cmocka_unit_test(test_lattice_and_blend),
+        cmocka_unit_test(test_lattice_and_blend), cmocka_unit_test(test_crossing_order),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -520,16 +520,18 @@ void as_bvh_bounds(const as_bvh *b, double lo[3], double hi[3]) {
 
 /* Conservative test: may the closed segment a + t d, t in [0, 1], meet the closed box?
  * (Slab clipping with AS_BVH_SEG_SLACK; an axis with d_k == 0 exactly — which holds iff
- * the two endpoints share that coordinate — is tested exactly.) */
-static inline int as_bvh_seg_box(const double *a, const double *d, const double *lo,
-                                 const double *hi) {
+ * the two endpoints share that coordinate — is tested exactly.) inv[k] = 1 / d[k]: a
+ * product instead of two divisions per axis (a relative error of one more rounding in
+ * t, far below the slack where the decision is made, t0 and t1 in [0, 1]). */
+static inline int as_bvh_seg_box(const double *a, const double *d, const double *inv,
+                                 const double *lo, const double *hi) {
     double t0 = 0, t1 = 1;
     for (int k = 0; k < 3; k++) {
         if (d[k] == 0) {
             if (a[k] < lo[k] || a[k] > hi[k]) return 0;
             continue;
         }
-        double ta = (lo[k] - a[k]) / d[k], tb = (hi[k] - a[k]) / d[k];
+        double ta = (lo[k] - a[k]) * inv[k], tb = (hi[k] - a[k]) * inv[k];
         if (ta > tb) {
             double x = ta;
             ta = tb;
@@ -540,6 +542,21 @@ static inline int as_bvh_seg_box(const double *a, const double *d, const double 
         if (t0 > t1 + AS_BVH_SEG_SLACK) return 0;
     }
     return 1;
+}
+
+/* The same test against the bounding box of triangle u v w: a segment that misses the
+ * box misses the closed triangle, and a symbolically perturbed crossing is within it, so
+ * the exact tests (several orientation predicates, about ten times the cost) are only
+ * run on the triangles that pass; most triangles of a leaf the segment meets do not. */
+static inline int as_bvh_seg_tri_box(const double *a, const double *d, const double *inv,
+                                     const double *u, const double *v, const double *w) {
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) {
+        double m = u[k] < v[k] ? u[k] : v[k], M = u[k] < v[k] ? v[k] : u[k];
+        lo[k] = w[k] < m ? w[k] : m;
+        hi[k] = w[k] > M ? w[k] : M;
+    }
+    return as_bvh_seg_box(a, d, inv, lo, hi);
 }
 
 enum { AS_WALK_HITS, AS_WALK_COUNT, AS_WALK_PARITY };
@@ -572,15 +589,16 @@ static int as_bvh_hit_push(anistar_context *ctx, as_bvh_hits *out, int32_t tri, 
  * lies on a triangle. */
 static void as_bvh_seg_walk(const as_bvh *b, const double *a, const double *c, as_bvh_walk *w) {
     if (!b->tc || b->nnodes == 0) return;
-    double d[3];
+    double d[3], inv[3];
     as_sub3(c, a, d);
+    for (int k = 0; k < 3; k++) inv[k] = d[k] != 0 ? 1.0 / d[k] : 0.0;
     uint32_t st[AS_BVH_STACK];
     int sp = 0;
     st[sp++] = 0;
     while (sp > 0) {
         uint32_t ni = st[--sp];
         const as_bvh_node *nd = &b->nodes[ni];
-        if (!as_bvh_seg_box(a, d, nd->lo, nd->hi)) continue;
+        if (!as_bvh_seg_box(a, d, inv, nd->lo, nd->hi)) continue;
         if (nd->right) {
             st[sp++] = nd->right;
             st[sp++] = ni + 1;
@@ -588,6 +606,7 @@ static void as_bvh_seg_walk(const as_bvh *b, const double *a, const double *c, a
         }
         for (uint32_t s = nd->begin; s < nd->begin + nd->count; s++) {
             const double *u = b->tc + 9 * (size_t)s, *v = u + 3, *x = u + 6;
+            if (!as_bvh_seg_tri_box(a, d, inv, u, v, x)) continue;
             if (w->mode == AS_WALK_PARITY) {
                 int r = as_segment_triangle_sos(a, c, u, v, x);
                 if (r < 0) {

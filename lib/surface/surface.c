@@ -241,13 +241,23 @@ static anistar_status cr_value(cr_chord *c, double u, double *f) {
 typedef struct cr_cand {
     double ua, ub, fa, fb;
     double dlo; /* distance from ref to the piece (lower bound of the root's distance) */
+    int step, seq; /* when a scan of the chord from A to B would have recorded it */
 } cr_cand;
 
 typedef struct cr_cands {
     cr_cand c[CR_MAX_CAND];
     int n;
+    int step, seq; /* the key of the next candidate added */
     double ref[3];
 } cr_cands;
+
+/* The order in which candidates are refined: by distance, then in the order a scan of the
+ * chord from A to B records them. */
+static inline int cr_cand_before(const cr_cand *a, const cr_cand *b) {
+    if (a->dlo != b->dlo) return a->dlo < b->dlo;
+    if (a->step != b->step) return a->step < b->step;
+    return a->seq < b->seq;
+}
 
 static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, double ub) {
     double pa[3], pb[3], d[3], w[3];
@@ -266,7 +276,7 @@ static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, d
 
 /* Add a candidate; when full, it replaces the farthest one if it is nearer. */
 static void cr_add(const cr_chord *c, cr_cands *cs, double ua, double fa, double ub, double fb) {
-    cr_cand k = {ua, ub, fa, fb, cr_piece_dist(c, cs->ref, ua, ub)};
+    cr_cand k = {ua, ub, fa, fb, cr_piece_dist(c, cs->ref, ua, ub), cs->step, cs->seq++};
     if (cs->n < CR_MAX_CAND) {
         cs->c[cs->n++] = k;
         return;
@@ -487,9 +497,12 @@ static anistar_status cr_piece_scan(cr_chord *c, cr_cands *cs, cr_piece base) {
     return ANISTAR_OK;
 }
 
-anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
-                                    const double a[3], const double b[3], const double ref[3],
-                                    int *found, double x[3]) {
+/* The crossing; full = 1 scans every piece from A to B before refining (the order of the
+ * original implementation, kept to test that the nearest-first order gives the same
+ * answers), full = 0 scans the pieces nearest ref first (step 2-3 below). */
+static anistar_status fs_crossing(anistar_context *ctx, const as_surface *s, const double a[3],
+                                  const double b[3], const double ref[3], int *found,
+                                  double x[3], int full) {
     *found = 0;
     if (!s->ops->eval) return fail_no_function(ctx, s);
     if (!v3_finite(a) || !v3_finite(b) || !v3_finite(ref))
@@ -546,60 +559,124 @@ anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
 
     cr_cands cs;
     cs.n = 0;
+    cs.step = cs.seq = 0;
     memcpy(cs.ref, ref, sizeof cs.ref);
 
-    /* 2. Base samples, analysed piece by piece. */
-    double uprev = 0, fprev, dprev;
-    int okprev;
-    anistar_status st = cr_eval(&c, 0, &fprev, &dprev, &okprev);
-    if (st) return st;
-    if (fprev == 0 || (!ain && fprev < 0)) cr_add(&c, &cs, 0, 0, 0, 0);
-    for (int i = 1; i <= npieces; i++) {
-        double u = i == npieces ? 1.0 : (double)i / npieces, f, dd;
-        int ok;
-        st = cr_eval(&c, u, &f, &dd, &ok);
-        if (st) return st;
-        if (f == 0 || (i == npieces && !bin && f < 0)) cr_add(&c, &cs, u, 0, u, 0);
-        cr_piece pc = {uprev, fprev, dprev, u, f, dd, okprev, ok};
-        st = cr_piece_scan(&c, &cs, pc);
-        if (st) return st;
-        uprev = u;
-        fprev = f;
-        dprev = dd;
-        okprev = ok;
-    }
-    if (cs.n == 0) return ANISTAR_OK;
-
-    /* 3. Refine candidates nearest first; stop when the next cannot be nearer. */
-    for (int i = 1; i < cs.n; i++) { /* insertion sort by dlo */
-        cr_cand k = cs.c[i];
+    /*
+     * 2-3. Base pieces scanned nearest ref first, candidates refined as soon as no piece
+     * left can hold a nearer one.
+     * design: this computes what scanning the whole chord from A to B and then refining
+     * the candidates by increasing distance (stopping at the first farther than the best
+     * root) computed — the answer the mesher needs is the crossing nearest the dual
+     * segment's reference point (the facet's circumcenter, on the segment's line), so the
+     * far pieces were sampled for nothing: on the skull with the defaults a crossing
+     * sampled 8.6 base points on average (up to 51) and now samples about 3 (issue 13).
+     * Why the result is the same: a piece's scan depends only on its two end samples,
+     * whatever the order of the pieces, and every candidate of piece i lies at distance
+     * >= pd[i] (the piece's own distance to ref). Once every piece with pd < T has been
+     * scanned, every candidate nearer than T is known, and the refinement loop can run
+     * over them in the full scan's order: by distance, ties in the order the full scan
+     * would have recorded them (key: step, then rank within the step). It ends when a
+     * candidate is farther than the best root, or when the best root is nearer than
+     * every unscanned piece (all later candidates are then farther: the full loop would
+     * stop there too). Two limits can still make the answers differ: more than
+     * CR_MAX_CAND candidates (the full scan drops its farthest ones), and a chord using
+     * the whole evaluation budget (the budget then stops the splits of other pieces).
+     * Neither occurs on the test inputs (outputs byte-identical); a non-finite f where
+     * the search never looks is no longer reported.
+     */
+    enum { CR_MAX_PIECES = 64 };
+    double bf[CR_MAX_PIECES + 1], bd[CR_MAX_PIECES + 1], pd[CR_MAX_PIECES + 1];
+    int bok[CR_MAX_PIECES + 1], order[CR_MAX_PIECES];
+    unsigned char have[CR_MAX_PIECES + 1], done[CR_MAX_CAND];
+    memset(have, 0, sizeof have);
+    memset(done, 0, sizeof done);
+#define CR_BASE_U(k) ((k) == npieces ? 1.0 : (double)(k) / npieces)
+    for (int i = 1; i <= npieces; i++) { /* pieces by (distance, index): insertion sort */
+        pd[i] = cr_piece_dist(&c, ref, CR_BASE_U(i - 1), CR_BASE_U(i));
         int j = i - 1;
-        while (j >= 0 && cs.c[j].dlo > k.dlo) {
-            cs.c[j + 1] = cs.c[j];
+        while (j > 0 && !full && pd[order[j - 1]] > pd[i]) {
+            order[j] = order[j - 1];
             j--;
         }
-        cs.c[j + 1] = k;
+        order[j] = i;
     }
     double tol_u = s->tol / c.len;
     double best = INFINITY, bx[3] = {0, 0, 0};
-    for (int i = 0; i < cs.n; i++) {
-        if (cs.c[i].dlo > best) break;
-        double u = cs.c[i].ua;
-        if (cs.c[i].ub > cs.c[i].ua) {
-            st = cr_refine(&c, cs.c[i].ua, cs.c[i].fa, cs.c[i].ub, cs.c[i].fb, tol_u, &u);
-            if (st) return st;
+    int next = 0; /* order[next] is the nearest piece not scanned */
+    anistar_status st = ANISTAR_OK;
+    for (;;) {
+        /* Scan the next group of pieces at the same distance. */
+        if (next < npieces) {
+            double dgroup = pd[order[next]];
+            while (next < npieces && (full || pd[order[next]] == dgroup)) {
+                int i = order[next++];
+                for (int k = i - 1; k <= i; k++) { /* the piece's end samples */
+                    if (have[k]) continue;
+                    double u = CR_BASE_U(k);
+                    if ((st = cr_eval(&c, u, &bf[k], &bd[k], &bok[k]))) return st;
+                    have[k] = 1;
+                    /* the full scan recorded an end zero (or an inside end on the
+                     * sphere) at its step k, before piece k's candidates */
+                    int inside_end = (k == 0 && !ain) || (k == npieces && !bin);
+                    if (bf[k] == 0 || (inside_end && bf[k] < 0)) {
+                        cs.step = k;
+                        cs.seq = 0;
+                        cr_add(&c, &cs, u, 0, u, 0);
+                    }
+                }
+                cs.step = i;
+                cs.seq = 1;
+                cr_piece pc = {CR_BASE_U(i - 1), bf[i - 1], bd[i - 1], CR_BASE_U(i), bf[i],
+                               bd[i], bok[i - 1], bok[i]};
+                if ((st = cr_piece_scan(&c, &cs, pc))) return st;
+            }
         }
-        double p[3];
-        cr_point(&c, u, p);
-        double dist = sqrt(v3_dist2(p, ref));
-        if (dist < best) {
-            best = dist;
-            memcpy(bx, p, sizeof bx);
+        double horizon = next < npieces ? pd[order[next]] : INFINITY;
+        /* Refine the known candidates nearer than every unscanned piece, in order. */
+        for (;;) {
+            int kmin = -1;
+            for (int k = 0; k < cs.n; k++) {
+                if (done[k] || !(cs.c[k].dlo < horizon || horizon == INFINITY)) continue;
+                if (kmin < 0 || cr_cand_before(&cs.c[k], &cs.c[kmin])) kmin = k;
+            }
+            if (kmin < 0) break;
+            if (cs.c[kmin].dlo > best) goto finish; /* the full loop stopped here */
+            done[kmin] = 1;
+            double u = cs.c[kmin].ua;
+            if (cs.c[kmin].ub > cs.c[kmin].ua) {
+                st = cr_refine(&c, cs.c[kmin].ua, cs.c[kmin].fa, cs.c[kmin].ub, cs.c[kmin].fb,
+                               tol_u, &u);
+                if (st) return st;
+            }
+            double p[3];
+            cr_point(&c, u, p);
+            double dist = sqrt(v3_dist2(p, ref));
+            if (dist < best) {
+                best = dist;
+                memcpy(bx, p, sizeof bx);
+            }
         }
+        if (horizon == INFINITY || best < horizon) break;
     }
+finish:
+#undef CR_BASE_U
+    if (best == INFINITY) return ANISTAR_OK;
     *found = 1;
     memcpy(x, bx, sizeof bx);
     return ANISTAR_OK;
+}
+
+anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
+                                    const double a[3], const double b[3], const double ref[3],
+                                    int *found, double x[3]) {
+    return fs_crossing(ctx, s, a, b, ref, found, x, 0);
+}
+
+anistar_status as_fsurface_crossing_full(anistar_context *ctx, const as_surface *s,
+                                         const double a[3], const double b[3],
+                                         const double ref[3], int *found, double x[3]) {
+    return fs_crossing(ctx, s, a, b, ref, found, x, 1);
 }
 
 /* ---- projection ----------------------------------------------------------------- */
@@ -607,10 +684,12 @@ anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
 /*
  * Newton steps along the gradient from x (in place) until |f|/|grad f| <= tol.
  * *ok = 1 on convergence; otherwise x is the best iterate. A non-finite value at the
- * start is an error; at trial points it only rejects the step.
+ * start is an error; at trial points it only rejects the step. On convergence f and its
+ * gradient at x are returned in fx and gx when not NULL (the closest-point loop needs
+ * them: evaluating them again was an eighth of a projection's evaluations).
  */
-static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, double x[3],
-                                int *ok) {
+static anistar_status pj_newton_fg(anistar_context *ctx, const as_surface *s, double x[3],
+                                   int *ok, double *fx, double gx[3]) {
     *ok = 0;
     double g[3];
     double f = s->ops->eval(s, x, 1, g, NULL);
@@ -622,6 +701,8 @@ static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, doubl
         double gn = sqrt(gn2);
         if (fabs(f) <= s->tol * gn) {
             *ok = 1;
+            if (fx) *fx = f;
+            if (gx) memcpy(gx, g, sizeof g);
             return ANISTAR_OK;
         }
         double len = fabs(f) / gn, lam = len > maxstep ? maxstep / len : 1.0;
@@ -640,6 +721,11 @@ static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, doubl
         if (!accepted) return ANISTAR_OK;
     }
     return ANISTAR_OK;
+}
+
+static anistar_status pj_newton(anistar_context *ctx, const as_surface *s, double x[3],
+                                int *ok) {
+    return pj_newton_fg(ctx, s, x, ok, NULL, NULL);
 }
 
 /* Bracketed fallback: the crossing nearest x along a few lines through x. */
@@ -734,11 +820,12 @@ anistar_status as_fsurface_project(anistar_context *ctx, const as_surface *s, co
             double y[3], gy[3];
             for (int i = 0; i < 3; i++) y[i] = x[i] + lam * t[i];
             int ok3;
-            st = pj_newton(ctx, s, y, &ok3);
+            double fy;
+            st = pj_newton_fg(ctx, s, y, &ok3, &fy, gy);
             if (st) return st;
             if (!ok3) continue;
             double dy = sqrt(v3_dist2(p, y));
-            double fy = s->ops->eval(s, y, 1, gy, NULL), gyn = v3_norm(gy);
+            double gyn = v3_norm(gy);
             if (!isfinite(fy) || !(gyn > 0) || !isfinite(gyn)) continue;
             double w[3] = {p[0] - y[0], p[1] - y[1], p[2] - y[2]}, wn = v3_dot(w, gy) / gyn;
             double wt[3] = {w[0] - wn * gy[0] / gyn, w[1] - wn * gy[1] / gyn,
@@ -1012,6 +1099,7 @@ static anistar_status sm_scan_segment(sm_state *st, const double a[3], const dou
     if (npieces > 64) npieces = 64;
     cr_cands cs;
     cs.n = 0;
+    cs.step = cs.seq = 0;
     memcpy(cs.ref, a, sizeof cs.ref);
     double uprev = 0, fprev, dprev;
     int okprev;

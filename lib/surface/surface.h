@@ -291,6 +291,11 @@ anistar_status as_fsurface_side(anistar_context *ctx, const as_surface *s, const
 anistar_status as_fsurface_crossing(anistar_context *ctx, const as_surface *s,
                                     const double a[3], const double b[3], const double ref[3],
                                     int *found, double x[3]);
+/* The same answer computed in the original order (every piece of the chord scanned from
+ * a to b before any refinement): for tests of the nearest-first order. */
+anistar_status as_fsurface_crossing_full(anistar_context *ctx, const as_surface *s,
+                                         const double a[3], const double b[3],
+                                         const double ref[3], int *found, double x[3]);
 anistar_status as_fsurface_project(anistar_context *ctx, const as_surface *s, const double p[3],
                                    double q[3]);
 anistar_status as_fsurface_frame(anistar_context *ctx, const as_surface *s, const double p[3],

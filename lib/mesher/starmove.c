@@ -231,6 +231,9 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
         /* design: from the first move on, stars keep their stretched points (star.h: a star
          * not rebuilt keeps a moved site where it was) */
         ss->env.keep_points = 1;
+        /* design: the rebuilds of the moves ask the surface the same questions again
+         * (star.h, as_star_memo) */
+        ss->env.memo = 1;
         for (int32_t w = 0; w < ss->n; w++)
             if (ss->stars[w] &&
                 (s = as_star_keep_points(&ss->env, ss->stars[w], &ss->mf[w], &ss->sc)) !=

@@ -148,8 +148,8 @@ typedef struct as_star {
  * knot1 64% of the side questions and 38% of the crossing ones are repeats, and each is a
  * BVH walk on a polyhedral surface. Many repeats are far apart (the same star rebuilt for
  * the moves of two of its neighbours): hits on knot1 were 14% / 11% of the side /
- * crossing questions with 2^12 entries, 23% / 18% with 2^16, 45% / 27% with 2^19; 2^14
- * costs 2.2 MB, once per owner that moves sites.
+ * crossing questions with 2^12 entries, 17% / 13% with 2^14, 23% / 18% with 2^16, 45% /
+ * 27% with 2^19; 2^14 costs 2.2 MB, once per owner that moves sites.
  */
 #define AS_STAR_MEMO_BITS 14
 typedef struct as_star_memo_side {

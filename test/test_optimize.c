@@ -270,6 +270,102 @@ static void test_move_undo(void **state) {
     anistar_context_free(ctx);
 }
 
+/* A move with mv.early: stopped early (doomed) only when the full move ends inconsistent
+ * or with an open star; otherwise the same stars, facet for facet, as the full move. */
+static void test_move_early(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    as_field *f;
+    assert_int_equal(as_implicit_builtin(ctx, "ellipsoid", &s), ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(ctx, s, "curvature", &f), ANISTAR_OK);
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.8;
+    p.gamma0 = 2.5;
+    anistar_mesh *mesh;
+    as_starset *ss;
+    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
+    as_starmove mv;
+    memset(&mv, 0, sizeof mv);
+    tu_rng rng = {11};
+    int doomed = 0, kept = 0;
+    for (int trial = 0; trial < 40; trial++) {
+        int32_t v = ss->first_site + (int32_t)(tu_rng_u64(&rng) % (uint64_t)(ss->n - ss->first_site));
+        const as_star *st = ss->stars[v];
+        const double *x = ss->xyz + 3 * (size_t)v;
+        /* large moves (past a facet's surface center) and small ones, projected on S */
+        double step = trial % 2 ? 1.5 : 0.15, q[3], p3[3];
+        for (int k = 0; k < 3; k++) q[k] = x[k] + step * (st->rf[0].c[k] - x[k]);
+        assert_int_equal(as_surface_project(ctx, s, q, p3), ANISTAR_OK);
+        /* the early move: its touched stars' facets, then undone. Each move inserts p in
+         * the kd-tree (undo leaves it, starmove.h): a flush before each of the two moves
+         * gives them the same tree */
+        assert_int_equal(as_starmove_flush(ss, &mv), ANISTAR_OK);
+        mv.early = 1;
+        assert_int_equal(as_starmove_apply(ss, &mv, v, p3), ANISTAR_OK);
+        int was_doomed = mv.doomed;
+        size_t n_early = mv.n, total = 0;
+        int32_t ids[256];
+        assert_true(n_early <= 256);
+        for (size_t k = 0; k < n_early; k++) {
+            ids[k] = mv.ids[k];
+            total += (size_t)ss->stars[ids[k]]->nrf;
+        }
+        as_rfacet *rf = malloc((total + 1) * sizeof *rf);
+        int32_t nrf[256];
+        size_t at = 0;
+        for (size_t k = 0; k < n_early; k++) {
+            nrf[k] = ss->stars[ids[k]]->nrf;
+            memcpy(rf + at, ss->stars[ids[k]]->rf, (size_t)nrf[k] * sizeof *rf);
+            at += (size_t)nrf[k];
+        }
+        assert_int_equal(as_starset_check_table(ss), ANISTAR_OK);
+        assert_int_equal(as_starmove_undo(ss, &mv), ANISTAR_OK);
+        assert_int_equal(ss->ninc, 0);
+        assert_int_equal(as_starset_check_table(ss), ANISTAR_OK);
+        /* the full move */
+        assert_int_equal(as_starmove_flush(ss, &mv), ANISTAR_OK);
+        mv.early = 0;
+        assert_int_equal(as_starmove_apply(ss, &mv, v, p3), ANISTAR_OK);
+        assert_int_equal(mv.doomed, 0);
+        int bad = ss->ninc != 0;
+        for (size_t k = 0; k < mv.n; k++) bad |= !ss->stars[mv.ids[k]]->closed;
+        if (was_doomed) {
+            doomed++;
+            assert_true(bad);
+            assert_true(n_early < mv.n);
+        } else {
+            kept++;
+            assert_int_equal(n_early, mv.n);
+        }
+        /* every star the early move rebuilt is the full move's, facet for facet */
+        at = 0;
+        for (size_t k = 0; k < n_early; k++) {
+            const as_star *sk = ss->stars[ids[k]];
+            assert_int_equal(sk->nrf, nrf[k]);
+            for (int32_t i = 0; i < nrf[k]; i++) {
+                assert_memory_equal(sk->rf[i].g, rf[at + (size_t)i].g, sizeof sk->rf[i].g);
+                assert_memory_equal(sk->rf[i].c, rf[at + (size_t)i].c, sizeof sk->rf[i].c);
+                assert_true(sk->rf[i].r == rf[at + (size_t)i].r);
+            }
+            at += (size_t)nrf[k];
+        }
+        free(rf);
+        assert_int_equal(as_starmove_undo(ss, &mv), ANISTAR_OK);
+        assert_int_equal(ss->ninc, 0);
+    }
+    assert_true(doomed > 0);
+    assert_true(kept > 0);
+    as_starmove_free(ctx, &mv);
+    as_starset_destroy(ss);
+    free(ss);
+    as_mesh_free(mesh);
+    as_field_free(f);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 /* The public parameter: range, default, get. */
 static void test_param(void **state) {
     (void)state;
@@ -352,6 +448,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_param),
         cmocka_unit_test(test_move_undo),
+        cmocka_unit_test(test_move_early),
         cmocka_unit_test(test_sphere_shock),
         cmocka_unit_test(test_ellipsoid_curvature_determinism),
         cmocka_unit_test(test_enomem),

@@ -123,7 +123,8 @@ static void test_restricted_vs_brute_force(void **state) {
         }
         as_metric_frame mf;
         random_frame(&r, trial < 8 ? 1.0 + 1e-9 : 4.0, &mf);
-        as_star_env env = {ctx, s, xyz, 0};
+        /* half the trials through the surface memo (star.h, as_star_memo) */
+        as_star_env env = {ctx, s, xyz, 0, trial % 2};
         as_star_scratch sc;
         memset(&sc, 0, sizeof sc);
         as_star st;
@@ -175,6 +176,62 @@ static void test_restricted_vs_brute_force(void **state) {
     anistar_context_free(ctx);
 }
 
+/* The surface memo (as_star_memo) changes no bit: a star built without it, then twice
+ * with it (the second time from the memo's answers), on a polyhedral surface. */
+static void test_memo_same_bits(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    assert_int_equal(as_mesh_surface_read(ctx, AS_TEST_DATA_DIR "/sphere_r0.5.off", &s),
+                     ANISTAR_OK);
+    tu_rng r = {777};
+    for (int trial = 0; trial < 8; trial++) {
+        int32_t n = 8 + 1 + 40;
+        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
+        for (int32_t c = 0; c < 8; c++)
+            for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 1.5 : -1.5;
+        for (int32_t i = 8; i < n; i++) {
+            sphere_point(&r, xyz + 3 * i);
+            for (int k = 0; k < 3; k++) xyz[3 * i + k] *= 0.5;
+        }
+        int32_t rest[40];
+        for (int32_t i = 0; i < 40; i++) rest[i] = 9 + i;
+        as_metric_frame mf;
+        random_frame(&r, 3.0, &mf);
+        as_star_scratch sc;
+        memset(&sc, 0, sizeof sc);
+        as_rfacet ref[256];
+        int32_t nref = 0;
+        for (int pass = 0; pass < 3; pass++) {
+            as_star_env env = {ctx, s, xyz, 0, pass > 0};
+            as_star st;
+            as_star_init(&st, ctx);
+            assert_int_equal(as_star_build(&env, &st, &mf, 8, &sc), ANISTAR_OK);
+            for (int32_t done = 0; done < 40; done += 5)
+                assert_int_equal(as_star_insert(&env, &st, &mf, rest + done, 5, &sc, NULL),
+                                 ANISTAR_OK);
+            assert_true(st.nrf > 0 && st.nrf <= 256);
+            if (pass == 0) {
+                nref = st.nrf;
+                memcpy(ref, st.rf, (size_t)st.nrf * sizeof *ref);
+            } else {
+                assert_int_equal(st.nrf, nref);
+                for (int32_t k = 0; k < nref; k++) {
+                    assert_memory_equal(st.rf[k].g, ref[k].g, sizeof ref[k].g);
+                    assert_memory_equal(st.rf[k].c, ref[k].c, sizeof ref[k].c);
+                    assert_true(st.rf[k].r == ref[k].r);
+                }
+            }
+            as_star_destroy(ctx, &st);
+        }
+        assert_non_null(sc.mside);
+        as_star_scratch_free(ctx, &sc);
+        free(xyz);
+    }
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 /* A packed star is its triangulation, slot for slot (issue 15): a star built and grown in
  * batches against a del3 given the same points in the same order (same frame, same random
  * state): the same vertices (ids, recomputed stretched points, incident tets), the same
@@ -198,7 +255,7 @@ static void test_packed_star_is_its_del3(void **state) {
         for (int32_t i = 8; i < n; i++) sphere_point(&r, xyz + 3 * i);
         as_metric_frame mf;
         random_frame(&r, 3.0, &mf);
-        as_star_env env = {ctx, s, xyz, trial == 3};
+        as_star_env env = {ctx, s, xyz, trial == 3, 0};
         as_star_scratch sc;
         memset(&sc, 0, sizeof sc);
         as_star st;
@@ -376,6 +433,7 @@ int main(void) {
         cmocka_unit_test(test_packed_star_is_its_del3),
         cmocka_unit_test(test_corners_generic),
         cmocka_unit_test(test_restricted_vs_brute_force),
+        cmocka_unit_test(test_memo_same_bits),
         cmocka_unit_test(test_facet_table_vs_rescan),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -200,7 +200,8 @@ static anistar_status optimize_site(as_starset *ss, const as_mesher_params *prm,
         if (!occupied(ss, v, t) && promising(ss, prm, v, t, &mft)) {
             cnt->tries++;
             if ((s = as_starmove_apply(ss, mv, v, t)) != ANISTAR_OK) return s;
-            if ((s = acceptable(ss, prm, mv, &ok)) != ANISTAR_OK) return s;
+            ok = 0;
+            if (!mv->doomed && (s = acceptable(ss, prm, mv, &ok)) != ANISTAR_OK) return s;
             if (ok) {
                 as_starmove_commit(ss, mv);
                 *moved = 1;
@@ -227,6 +228,7 @@ anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
     as_starmove mv;
     memset(&mv, 0, sizeof mv);
     mv.v = -1;
+    mv.early = 1; /* design: a move that must end inconsistent stops early (starmove.h) */
     uint8_t *dirty = as_alloc_array(ctx, n, sizeof *dirty);
     opt_item *items = as_alloc_array(ctx, n, sizeof *items);
     if (!dirty || !items) {

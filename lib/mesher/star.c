@@ -24,6 +24,8 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_free(ctx, s->fsph, s->cap_fsph * sizeof *s->fsph);
     as_free(ctx, s->sprev, (size_t)s->cap_sprev * sizeof *s->sprev);
     as_free(ctx, s->slot, (size_t)s->cap_slot * sizeof *s->slot);
+    as_free(ctx, s->mside, ((size_t)1 << AS_STAR_MEMO_BITS) * sizeof *s->mside);
+    as_free(ctx, s->mcross, ((size_t)1 << AS_STAR_MEMO_BITS) * sizeof *s->mcross);
     memset(s, 0, sizeof *s);
 }
 
@@ -138,9 +140,58 @@ static int tet_center(as_star *st, int32_t t, double cc[3]) {
     return as_del3_circumcenter(st->d, t, cc);
 }
 
+/* The memo's slot for the n doubles of x (a hash of their bits). */
+static size_t memo_slot(const double *x, int n) {
+    uint64_t h = 0x9e3779b97f4a7c15u;
+    for (int i = 0; i < n; i++) {
+        uint64_t b;
+        memcpy(&b, x + i, sizeof b);
+        h = (h ^ b) * 0xff51afd7ed558ccdu;
+        h ^= h >> 32;
+    }
+    return (size_t)(h >> (64 - AS_STAR_MEMO_BITS));
+}
+
+/* The memo's tables of sc (allocated at the first use): 0, or -1 out of memory (then
+ * the caller asks the surface: the memo is only a shortcut). */
+static int memo_ready(const as_star_env *env, as_star_scratch *sc) {
+    if (!env->memo) return -1;
+    if (sc->mside) return 0;
+    size_t n = (size_t)1 << AS_STAR_MEMO_BITS;
+    sc->mside = as_alloc_array(env->ctx, n, sizeof *sc->mside);
+    sc->mcross = as_alloc_array(env->ctx, n, sizeof *sc->mcross);
+    if (!sc->mside || !sc->mcross) {
+        as_free(env->ctx, sc->mside, n * sizeof *sc->mside);
+        as_free(env->ctx, sc->mcross, n * sizeof *sc->mcross);
+        sc->mside = NULL;
+        sc->mcross = NULL;
+        return -1;
+    }
+    memset(sc->mside, 0, n * sizeof *sc->mside);
+    memset(sc->mcross, 0, n * sizeof *sc->mcross);
+    return 0;
+}
+
+/* as_surface_side through the memo of sc (see as_star_memo). */
+static anistar_status side_memo(const as_star_env *env, as_star_scratch *sc, const double x[3],
+                                int *side) {
+    if (memo_ready(env, sc) != 0) return as_surface_side(env->ctx, env->surf, x, side);
+    as_star_memo_side *e = &sc->mside[memo_slot(x, 3)];
+    if (e->side != 0 && memcmp(e->x, x, sizeof e->x) == 0) {
+        *side = e->side;
+        return ANISTAR_OK;
+    }
+    anistar_status s = as_surface_side(env->ctx, env->surf, x, side);
+    if (s == ANISTAR_OK && *side != 0) {
+        memcpy(e->x, x, sizeof e->x);
+        e->side = *side;
+    }
+    return s;
+}
+
 /* The inside state of live finite tet t (cached). */
-static anistar_status tet_inside(const as_star_env *env, as_star *st, const as_metric_frame *mf,
-                                 int32_t t, int *in) {
+static anistar_status tet_inside(const as_star_env *env, as_star_scratch *sc, as_star *st,
+                                 const as_metric_frame *mf, int32_t t, int *in) {
     uint8_t f = st->tflag[t];
     if ((f & TF_STATE) != TF_UNKNOWN) {
         *in = (f & TF_STATE) == TF_IN;
@@ -152,7 +203,7 @@ static anistar_status tet_inside(const as_star_env *env, as_star *st, const as_m
     as_metric_unapply(mf, cc, x);
     int side = 1;
     if (isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2])) {
-        anistar_status s = as_surface_side(env->ctx, env->surf, x, &side);
+        anistar_status s = side_memo(env, sc, x, &side);
         if (s != ANISTAR_OK) return s;
     }
     *in = side < 0;
@@ -163,8 +214,33 @@ static anistar_status tet_inside(const as_star_env *env, as_star *st, const as_m
 /* The crossing of [a, b] (a inside, b outside or the reverse) nearest ref; bisection on
  * the side oracle when the crossing finder misses it (it should not: the end signs
  * differ). */
-static anistar_status dual_crossing(const as_star_env *env, const double a[3], const double b[3],
-                                    const double ref[3], double c[3]) {
+static anistar_status dual_crossing_surface(const as_star_env *env, const double a[3],
+                                            const double b[3], const double ref[3], double c[3]);
+
+/* dual_crossing_surface through the memo of sc (see as_star_memo). */
+static anistar_status dual_crossing(const as_star_env *env, as_star_scratch *sc, const double a[3],
+                                    const double b[3], const double ref[3], double c[3]) {
+    if (memo_ready(env, sc) != 0) return dual_crossing_surface(env, a, b, ref, c);
+    double in[9];
+    memcpy(in, a, 3 * sizeof *in);
+    memcpy(in + 3, b, 3 * sizeof *in);
+    memcpy(in + 6, ref, 3 * sizeof *in);
+    as_star_memo_cross *e = &sc->mcross[memo_slot(in, 9)];
+    if (e->used && memcmp(e->in, in, sizeof in) == 0) {
+        memcpy(c, e->c, sizeof e->c);
+        return ANISTAR_OK;
+    }
+    anistar_status s = dual_crossing_surface(env, a, b, ref, c);
+    if (s == ANISTAR_OK) {
+        memcpy(e->in, in, sizeof in);
+        memcpy(e->c, c, sizeof e->c);
+        e->used = 1;
+    }
+    return s;
+}
+
+static anistar_status dual_crossing_surface(const as_star_env *env, const double a[3],
+                                            const double b[3], const double ref[3], double c[3]) {
     int found = 0;
     anistar_status s = as_surface_crossing(env->ctx, env->surf, a, b, ref, &found, c);
     if (s != ANISTAR_OK) return s;
@@ -440,8 +516,8 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         int32_t face = sc->faces.a[k];
         int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
         int in1, in2;
-        if ((s = tet_inside(env, st, mf, t1, &in1)) != ANISTAR_OK) return s;
-        if ((s = tet_inside(env, st, mf, t2, &in2)) != ANISTAR_OK) return s;
+        if ((s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK) return s;
+        if ((s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK) return s;
         if (in1 == in2) continue;
         as_gid g[3];
         int32_t lv[3], n = 0;
@@ -476,7 +552,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             as_metric_unapply(mf, fcs, fc);
         else
             for (int q = 0; q < 3; q++) fc[q] = 0.5 * (a[q] + b[q]);
-        if ((s = dual_crossing(env, a, b, fc, f->c)) != ANISTAR_OK) return s;
+        if ((s = dual_crossing(env, sc, a, b, fc, f->c)) != ANISTAR_OK) return s;
         f->r = as_metric_dist(mf, f->c, vx);
     }
     /* sort by triple (insertion sort: tens of facets) */

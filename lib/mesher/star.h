@@ -53,6 +53,8 @@ typedef struct as_star_env {
     const double *xyz; /* 3 per global id (corners, poles, sites) */
     int keep_points;   /* pack the stretched points with the stars (see as_star): needed
                           once sites move (the optimiser), else recomputed */
+    int memo;          /* remember surface answers in the scratch (as_star_memo): set by
+                          the optimiser, whose rebuilds ask the same questions again */
 } as_star_env;
 
 /*
@@ -134,6 +136,32 @@ typedef struct as_star {
     float *fsph;
 } as_star;
 
+/*
+ * The last surface answers of an owner's stars (env->memo): the side of a tet's mapped
+ * circumcenter and the crossing of a facet's dual segment, keyed by the exact bits of
+ * their inputs (the surface is a fixed function of them), direct-mapped, overwritten on
+ * collision. A hit returns the very bits the surface would compute, so the stars do not
+ * depend on what the memo holds (determinism).
+ * design: the optimiser rebuilds the ~9 stars around a site for each position it tries
+ * (DESIGN.md 4.9); most of their tets and facets do not touch the moved site and come out
+ * of del3 with the same vertices in the same order, hence the same circumcenters: on
+ * knot1 64% of the side questions and 38% of the crossing ones are repeats, and each is a
+ * BVH walk on a polyhedral surface. Many repeats are far apart (the same star rebuilt for
+ * the moves of two of its neighbours): hits on knot1 were 14% / 11% of the side /
+ * crossing questions with 2^12 entries, 17% / 13% with 2^14, 23% / 18% with 2^16, 45% /
+ * 27% with 2^19; 2^14 costs 2.2 MB, once per owner that moves sites.
+ */
+#define AS_STAR_MEMO_BITS 14
+typedef struct as_star_memo_side {
+    double x[3];
+    int side;  /* 0: empty slot */
+} as_star_memo_side;
+typedef struct as_star_memo_cross {
+    double in[9]; /* a, b, ref */
+    double c[3];
+    int used;
+} as_star_memo_cross;
+
 /* Scratch shared by every star of one owner (never per star). */
 typedef struct as_star_scratch {
     as_del3_buf tets, faces;
@@ -166,6 +194,9 @@ typedef struct as_star_scratch {
      * updates) */
     int32_t *slot;
     int32_t cap_slot;
+    /* env->memo: 2^AS_STAR_MEMO_BITS entries each (allocated at the first use) */
+    as_star_memo_side *mside;
+    as_star_memo_cross *mcross;
 } as_star_scratch;
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s);

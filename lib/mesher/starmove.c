@@ -138,6 +138,65 @@ static anistar_status new_star(as_starset *ss, as_starmove *mv, int32_t w, const
     return ANISTAR_OK;
 }
 
+/* 1 if some inconsistent facet of ss is final: none of its vertices' stars is among the
+ * touched stars still to rebuild (mv->ids[mv->n..count)). A star's rebuild only changes
+ * the facets that hold its center, so such a facet stays inconsistent to the end of the
+ * move. */
+static int final_inconsistency(const as_starset *ss, const as_starmove *mv, size_t count) {
+    for (size_t i = 0; i < ss->ninc; i++) {
+        const as_gid *g = ss->inc[i].g;
+        int pending = 0;
+        for (size_t k = mv->n; k < count && !pending; k++)
+            pending = mv->ids[k] == g[0] || mv->ids[k] == g[1] || mv->ids[k] == g[2];
+        if (!pending) return 1;
+    }
+    return 0;
+}
+
+/*
+ * Reorder the touched stars after v's (mv->ids[1..count), v's new star rebuilt) so that
+ * facets of v become final soon: v's neighbours in the order of a walk around v's new
+ * facets (after v, a and b are rebuilt, facet (v, a, b) is final), then the others as
+ * they were (ascending).
+ */
+static void order_by_fan(const as_starset *ss, as_starmove *mv, size_t count) {
+    const as_star *st = ss->stars[mv->v];
+    size_t placed = 1;
+    int32_t prev = -1, cur = -1;
+    int32_t start = -1;
+    for (int32_t step = 0; step <= st->nrf && placed < count; step++) {
+        /* the next vertex of the walk: a facet holding cur other than the one from prev */
+        int32_t next = -1;
+        for (int32_t i = 0; i < st->nrf && next < 0; i++) {
+            const as_gid *g = st->rf[i].g;
+            int32_t a = -1, b = -1;
+            for (int j = 0; j < 3; j++)
+                if (g[j] != mv->v) {
+                    if (a < 0) a = g[j];
+                    else b = g[j];
+                }
+            if (cur < 0) {
+                next = a;
+                start = a;
+            } else if (a == cur && b != prev) {
+                next = b;
+            } else if (b == cur && a != prev) {
+                next = a;
+            }
+        }
+        if (next < 0 || (step > 0 && next == start)) break;
+        for (size_t k = placed; k < count; k++)
+            if (mv->ids[k] == next) {
+                /* move it to position placed, keeping the others in order */
+                memmove(mv->ids + placed + 1, mv->ids + placed, (k - placed) * sizeof *mv->ids);
+                mv->ids[placed++] = next;
+                break;
+            }
+        prev = cur;
+        cur = next;
+    }
+}
+
 /* Put the old stars 0..mv->n back (reverse diffs), free the new ones, restore v. */
 static anistar_status revert(as_starset *ss, as_starmove *mv) {
     anistar_context *ctx = ss->ctx;
@@ -165,12 +224,16 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
     anistar_status s;
     mv->n = 0;
     mv->v = -1;
+    mv->doomed = 0;
     if (v < ss->first_site || v >= ss->n || !ss->stars[v])
         return as_fail(ctx, ANISTAR_EINVAL, "optimize: %d is not a surface site", (int)v);
     if (!ss->env.keep_points) {
         /* design: from the first move on, stars keep their stretched points (star.h: a star
          * not rebuilt keeps a moved site where it was) */
         ss->env.keep_points = 1;
+        /* design: the rebuilds of the moves ask the surface the same questions again
+         * (star.h, as_star_memo) */
+        ss->env.memo = 1;
         for (int32_t w = 0; w < ss->n; w++)
             if (ss->stars[w] &&
                 (s = as_star_keep_points(&ss->env, ss->stars[w], &ss->mf[w], &ss->sc)) !=
@@ -197,6 +260,14 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
         mv->old[k] = old;
         mv->n = k + 1;
         if ((s = as_starset_apply_diff(ss, id, old->rf, old->nrf)) != ANISTAR_OK) break;
+        if (!mv->early || k + 1 == count) continue;
+        /* a touched star that is not a closed fan, or a final inconsistent facet: the
+         * optimiser would undo the move (optimize.c) */
+        if (!nw->closed || (ss->ninc && final_inconsistency(ss, mv, count))) {
+            mv->doomed = 1;
+            break;
+        }
+        if (k == 0) order_by_fan(ss, mv, count);
     }
     if (s != ANISTAR_OK) {
         (void)revert(ss, mv);

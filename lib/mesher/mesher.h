@@ -33,7 +33,34 @@ typedef struct as_mesher_params {
     int32_t threads;        /* threads of the star set's parallel sections (>= 1) */
     int32_t max_ids;        /* tests: the star set's id limit (0: AS_STARSET_MAX_IDS); the
                                hard limit on sites is 1024 below it */
+    const double *seeds;    /* sites inserted after the initial ones (3 per site; NULL:
+                               none), in their order, exact duplicates skipped */
+    size_t nseeds;
+    const struct as_part_hook *part; /* the partition simulation's hook (NULL: none) */
 } as_mesher_params;
+
+/*
+ * The partition simulation (partition.c, docs/scaling.md): a run that is one part of a
+ * surface split into k. With a hook, a run inserts only the refinement points the hook
+ * accepts, and when no job is left it calls round_end instead of the final checks: the
+ * hook exchanges sites with the other parts and returns the points to insert (the other
+ * parts' sites near this part, the points they asked it to insert); the run goes on while
+ * *more is set and otherwise ends INCOMPLETE (not checked), its star set kept.
+ *  round_end also names stars whose jobs accept set aside (again): after the points,
+ *          their facets that violate rules 1 or 2 are queued again, and every
+ *          inconsistent facet.
+ *  accept: whether to insert p, the point of a job of star v (rule: 0-2 the rules 1-3,
+ *          3 the topology rule; f the facet, NULL for the topology rule); when `final`
+ *          is 0, p is only the facet's surface center, asked before Pick_valid (0 there:
+ *          the job is dropped without picking)
+ */
+typedef struct as_part_hook {
+    void *user;
+    int (*accept)(void *user, const as_starset *ss, int rule, int32_t v, const as_rfacet *f,
+                  const double p[3], int final);
+    anistar_status (*round_end)(void *user, as_starset *ss, const double **pts, size_t *npts,
+                                const int32_t **again, size_t *nagain, int *more);
+} as_part_hook;
 
 void as_mesher_params_default(as_mesher_params *p);
 

@@ -1077,6 +1077,24 @@ static anistar_status requeue_rule1(refiner *R, int32_t v) {
     return ANISTAR_OK;
 }
 
+/* Queue for rules 1 and 2 every restricted facet of star v that violates them now (a
+ * part of the partition simulation: jobs it set aside before its halo came). */
+static anistar_status requeue_star(refiner *R, int32_t v) {
+    as_starset *ss = R->ss;
+    anistar_status s = requeue_rule1(R, v);
+    as_star *st = ss->stars[v];
+    for (int32_t i = 0; s == ANISTAR_OK && st && i < st->nrf; i++) {
+        as_rfacet *f = &st->rf[i];
+        if (f->queued & 2) continue;
+        double v2 = as_rule2_violation(ss, R->prm, v, f);
+        if (v2 <= 0) continue;
+        as_qentry q = {v2, as_facet_key(f->g), v};
+        if ((s = as_queue_push(R->ctx, &R->q[1], q)) != ANISTAR_OK) return s;
+        f->queued |= 2;
+    }
+    return s;
+}
+
 /*
  * Halve the alpha of the sites inside the balls where the final checks failed
  * (ss->trouble), down to AS_FEATURE_ALPHA_MIN, and queue their stars' facets that now
@@ -1299,6 +1317,12 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                     "more than max_vertices %lld; raise r0 or max_vertices",
                     R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv);
     if (s == ANISTAR_OK) s = initial_points(&R);
+    for (size_t k = 0; s == ANISTAR_OK && k < prm->nseeds; k++) {
+        const double *p = prm->seeds + 3 * k;
+        if (is_duplicate(ss, p)) continue;
+        if ((int64_t)(ss->n - ss->first_site) >= maxv) break; /* the loop says why */
+        s = insert_point(&R, p);
+    }
     as_sampler_free(ctx, ss->sampler); /* the grid's 12 MB, before the stars grow */
     ss->sampler = NULL;
     double t1 = now_seconds();
@@ -1315,6 +1339,23 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         int32_t v = -1;
         as_rfacet f;
         if ((s = next_job(&R, &rule, &v, &f, &cause)) != ANISTAR_OK) break;
+        if (rule == JOB_NONE && prm->part) {
+            /* a part of the partition simulation: its round ends here, not the run */
+            const double *pts = NULL;
+            const int32_t *again = NULL;
+            size_t npts = 0, nagain = 0;
+            int more = 0;
+            if ((s = prm->part->round_end(prm->part->user, ss, &pts, &npts, &again, &nagain,
+                                          &more)) != ANISTAR_OK)
+                break;
+            for (size_t k = 0; k < npts && s == ANISTAR_OK; k++)
+                if (!is_duplicate(ss, pts + 3 * k)) s = insert_point(&R, pts + 3 * k);
+            for (size_t k = 0; k < nagain && s == ANISTAR_OK; k++) s = requeue_star(&R, again[k]);
+            int pushed;
+            if (s == ANISTAR_OK && nagain) s = requeue_inconsistent(&R, &pushed);
+            if (s != ANISTAR_OK || !more) break;
+            continue;
+        }
         if (rule == JOB_NONE) {
             int pushed = 0;
             if (ss->ninc == 0) {
@@ -1419,6 +1460,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             int found;
             if ((s = topology_point(&R, v, p, &d, &found)) != ANISTAR_OK) break;
             if (!found) continue; /* certification names the star if it stays open */
+            if (prm->part && !prm->part->accept(prm->part->user, ss, rule, v, NULL, p, 1))
+                continue;
             /* design: on a triangle mesh the topology rule stops at the surface's
              * resolution too (hmin, as the other rules): a point nearer than hmin to a
              * site is not inserted, and certification judges the star. A polyhedron is
@@ -1444,11 +1487,15 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             R.cnt.topology++;
             continue;
         }
+        if (prm->part && rule != JOB_RULE1 &&
+            !prm->part->accept(prm->part->user, ss, rule, v, &f, f.c, 0))
+            continue;
         if (rule == JOB_RULE1) {
             memcpy(p, f.c, sizeof p);
         } else {
             if ((s = pick_valid(&R, v, &f, p)) != ANISTAR_OK) break;
         }
+        if (prm->part && !prm->part->accept(prm->part->user, ss, rule, v, &f, p, 1)) continue;
         if ((s = as_refine_check_point(ss, p, v, f.g, f.r)) != ANISTAR_OK) break;
         if (rule == JOB_RULE3) stall_update(&R, 1); /* the residue this insertion faces */
         if ((s = insert_point(&R, p)) != ANISTAR_OK) break;

@@ -14,6 +14,9 @@
 #include "surface/field.h"
 #include "surface/surface.h"
 
+/* The refinement points of one batch (as_mesher_params.batch; docs/algorithm.md §11). */
+#define AS_MESHER_BATCH 16
+
 /* Parameters (DESIGN.md 4.5; public setters check the ranges). */
 typedef struct as_mesher_params {
     double r0, gamma0, rho0, beta, delta, approx, max_seconds;
@@ -31,6 +34,10 @@ typedef struct as_mesher_params {
                                refined (rule 1); 0: none */
     int32_t aniso_cap;      /* 1: the rotation floor of the metric (starset.c) */
     int32_t threads;        /* threads of the star set's parallel sections (>= 1) */
+    int32_t batch;          /* refinement points taken together (refine.c, batch_step):
+                               AS_MESHER_BATCH by default; 1: one at a time (the order of
+                               the runs before issue 15's batches). Never depends on
+                               threads: the output does not either */
     int32_t max_ids;        /* tests: the star set's id limit (0: AS_STARSET_MAX_IDS); the
                                hard limit on sites is 1024 below it */
     const double *seeds;    /* sites inserted after the initial ones (3 per site; NULL:

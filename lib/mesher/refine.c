@@ -28,6 +28,7 @@ void as_mesher_params_default(as_mesher_params *p) {
     p->optimize = 0;
     p->aniso_cap = 1;
     p->threads = 1;
+    p->batch = AS_MESHER_BATCH;
 }
 
 /* ---- queues ------------------------------------------------------------------------- */
@@ -244,6 +245,14 @@ typedef struct refiner {
     size_t cap_evpre;
     struct as_pcand *pcand; /* Pick_valid's candidates of a round (threads) */
     size_t cap_pcand;
+    struct as_bjob *jobs;   /* a batch's jobs (batch_step), their points' lists kept */
+    size_t cap_jobs;
+    as_bpoint *win;         /* a batch's points to insert (copies of their jobs' points) */
+    size_t cap_win;
+    uint32_t *resv;         /* per id: the batch that reserved the star (batch_step) */
+    size_t cap_resv;
+    uint32_t bepoch;
+    int32_t njobs;
     /* as_starset_verify_zones' selection (on_held_piece): per site, its piece (union-find
      * over the restricted facets of the stars) and per piece root whether one of its
      * facets is not below hmin */
@@ -298,16 +307,27 @@ static int on_held_piece(void *arg, int32_t v) {
     return !R->piece_refined[as_uf_find(R->piece, (uint32_t)v)];
 }
 
-static uint64_t rng_next(refiner *R) {
+static uint64_t rng_next_at(uint64_t *state) {
     /* xorshift64* */
-    uint64_t x = R->rng;
+    uint64_t x = *state;
     x ^= x >> 12;
     x ^= x << 25;
     x ^= x >> 27;
-    R->rng = x;
+    *state = x;
     return x * 0x2545F4914F6CDD1DULL;
 }
-static double rng_unit(refiner *R) { return (double)(rng_next(R) >> 11) * 0x1.0p-53; }
+static double rng_unit_at(uint64_t *state) {
+    return (double)(rng_next_at(state) >> 11) * 0x1.0p-53;
+}
+static double rng_unit(refiner *R) { return rng_unit_at(&R->rng); }
+
+/* A fresh xorshift state from x (splitmix64: never zero). */
+static uint64_t rng_seed(uint64_t x) {
+    uint64_t z = x + 0x9E3779B97F4A7C15ULL;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return (z ^ (z >> 31)) | 1;
+}
 
 static double now_seconds(void) {
     struct timespec ts;
@@ -625,10 +645,6 @@ static anistar_status valid_point_on(refiner *R, int t, anistar_context *ctx, co
     return ANISTAR_OK;
 }
 
-static anistar_status valid_point(refiner *R, const double p[3], double rv, int *valid) {
-    return valid_point_on(R, -1, R->ctx, p, rv, valid);
-}
-
 /* Pick_valid on threads: one candidate of a round (pick_task). */
 typedef struct as_pcand {
     int is_center;
@@ -768,28 +784,29 @@ static anistar_status pick_valid_pool(refiner *R, const as_rfacet *f, const as_m
 }
 
 /* Pick_valid(tau, M_v) (paper 4.2, DESIGN.md 4.5): the center first, then random points of
- * the picking region; after pick_tries failures the center. */
-static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, double out[3]) {
+ * the picking region; after pick_tries failures the center. One candidate after the other
+ * on thread slot t (-1: the caller's workspace; ctx: the slot's context), with the random
+ * state *rng; the tries made and failures (0 or 1) added to *tries and *failures. */
+static anistar_status pick_valid_on(refiner *R, int t, anistar_context *ctx,
+                                    const as_rfacet *f, const as_metric_frame *mf, uint64_t *rng,
+                                    double out[3], uint64_t *tries, uint64_t *failures) {
     as_starset *ss = R->ss;
-    /* a copy: simulations may move ss->mf */
-    const as_metric_frame mfv = ss->mf[v], *mf = &mfv;
-    if (ss->pool) return pick_valid_pool(R, f, mf, out);
     anistar_status s;
     int valid = 0;
     memcpy(out, f->c, 3 * sizeof(double));
     if (!is_duplicate(ss, f->c)) {
-        if ((s = valid_point(R, f->c, f->r, &valid)) != ANISTAR_OK) return s;
+        if ((s = valid_point_on(R, t, ctx, f->c, f->r, &valid)) != ANISTAR_OK) return s;
         if (valid) return ANISTAR_OK;
     }
     double n[3];
     int sing = 0;
-    if ((s = as_surface_normal_at(R->ctx, ss->surf, f->c, n, &sing)) != ANISTAR_OK) return s;
+    if ((s = as_surface_normal_at(ctx, ss->surf, f->c, n, &sing)) != ANISTAR_OK) return s;
     double rad = R->prm->delta * f->r;
-    for (int32_t t = 0; t < R->prm->pick_tries; t++) {
-        R->cnt.pick_tries++;
+    for (int32_t k2 = 0; k2 < R->prm->pick_tries; k2++) {
+        (*tries)++;
         double u[3];
         do {
-            for (int k = 0; k < 3; k++) u[k] = 2 * rng_unit(R) - 1;
+            for (int k = 0; k < 3; k++) u[k] = 2 * rng_unit_at(rng) - 1;
         } while (u[0] * u[0] + u[1] * u[1] + u[2] * u[2] > 1);
         double w[3], y[3], q[3];
         for (int k = 0; k < 3; k++) u[k] *= rad;
@@ -798,20 +815,29 @@ static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, doub
          * projected onto S; kept if still within the picking region. */
         double dn = sing ? 0 : w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
         for (int k = 0; k < 3; k++) y[k] = f->c[k] + w[k] - dn * n[k];
-        s = as_surface_project(R->ctx, ss->surf, y, q);
+        s = as_surface_project(ctx, ss->surf, y, q);
         if (s == ANISTAR_ENOSURFACE) continue;
         if (s != ANISTAR_OK) return s;
         if (!(as_metric_dist(mf, q, f->c) <= rad)) continue;
         if (is_duplicate(ss, q)) continue;
-        if ((s = valid_point(R, q, f->r, &valid)) != ANISTAR_OK) return s;
+        if ((s = valid_point_on(R, t, ctx, q, f->r, &valid)) != ANISTAR_OK) return s;
         if (valid) {
             memcpy(out, q, sizeof q);
             return ANISTAR_OK;
         }
     }
-    R->cnt.pick_failures++;
+    (*failures)++;
     memcpy(out, f->c, 3 * sizeof(double));
     return ANISTAR_OK;
+}
+
+static anistar_status pick_valid(refiner *R, int32_t v, const as_rfacet *f, double out[3]) {
+    as_starset *ss = R->ss;
+    /* a copy: simulations may move ss->mf */
+    const as_metric_frame mfv = ss->mf[v], *mf = &mfv;
+    if (ss->pool) return pick_valid_pool(R, f, mf, out);
+    return pick_valid_on(R, -1, R->ctx, f, mf, &R->rng, out, &R->cnt.pick_tries,
+                         &R->cnt.pick_failures);
 }
 
 /* ---- topology rule ---------------------------------------------------------------------- */
@@ -1056,6 +1082,224 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
     return ANISTAR_OK;
 }
 
+/* ---- batches (issue 15) ---------------------------------------------------------------- */
+
+/* A job of a batch: a queue entry taken, its facet, and what the threads computed. */
+typedef struct as_bjob {
+    as_qentry e;    /* the entry (put back when the job loses its stars) */
+    int rule;       /* JOB_RULE1, JOB_RULE2, JOB_RULE3 */
+    int why;        /* rule 1's cause */
+    int32_t v;      /* the star */
+    as_rfacet f;    /* the facet (a copy) */
+    double viol;    /* rules 1-2: the local part of the violation */
+    uint64_t rng;   /* its own random state (Pick_valid) */
+    uint64_t tries, failures;
+    int live;       /* still a job after the violation test */
+    as_bpoint b;    /* its point, frame and conflicting stars */
+} as_bjob;
+
+/* Take up to prm->batch valid entries of queue k (as next_job skips stale ones). */
+static anistar_status batch_take(refiner *R, int k) {
+    as_starset *ss = R->ss;
+    const int32_t B = R->prm->batch;
+    if ((size_t)B > R->cap_jobs) {
+        size_t old = R->cap_jobs;
+        if (as_grow(R->ctx, (void **)&R->jobs, &R->cap_jobs, (size_t)B, sizeof *R->jobs))
+            return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+        memset(R->jobs + old, 0, (R->cap_jobs - old) * sizeof *R->jobs);
+    }
+    R->njobs = 0;
+    as_qentry e;
+    while (R->njobs < B && as_queue_pop(&R->q[k], &e)) {
+        const as_gid *g = e.key.g;
+        as_bjob *J = &R->jobs[R->njobs];
+        if (k < 2) {
+            as_star *st = ss->stars[e.star];
+            int32_t i = as_star_find(st, g);
+            if (i < 0 || !(st->rf[i].queued & (1u << k))) continue;
+            st->rf[i].queued &= (uint8_t) ~(1u << k);
+            J->v = e.star;
+            J->f = st->rf[i];
+        } else {
+            as_ftab_entry *te = as_starset_lookup(ss, e.key);
+            if (!te) continue;
+            te->queued = 0;
+            if (te->incpos < 0) continue;
+            int found = 0;
+            for (int b = 0; b < 3 && !found; b++) {
+                if (!(te->mask & (1u << b))) continue;
+                as_star *st = ss->stars[g[b]];
+                int32_t i = as_star_find(st, g);
+                if (i < 0) continue;
+                J->v = g[b];
+                J->f = st->rf[i];
+                found = 1;
+            }
+            if (!found) continue;
+        }
+        J->e = e;
+        J->rule = k;
+        J->why = AS_CAUSE_SIZE;
+        J->live = 1;
+        J->tries = J->failures = 0;
+        R->njobs++;
+    }
+    return ANISTAR_OK;
+}
+
+/* Rules 1-2 without the feature-size part, for job k (threads: reads only). */
+static anistar_status bviol_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)t;
+    refiner *R = arg;
+    as_bjob *J = &R->jobs[k];
+    anistar_status err = ANISTAR_OK;
+    if (J->rule == JOB_RULE1)
+        J->viol = rule1_local(R->ss, tctx, R->prm, &J->f, &J->why, &err);
+    else
+        J->viol = as_rule2_violation(R->ss, R->prm, J->v, &J->f);
+    return err;
+}
+
+/* Job k's point (its surface center, or Pick_valid's), its frame and its conflicting
+ * stars, on thread slot t (-1: the caller's); reads only. */
+static anistar_status bpoint_on(refiner *R, int32_t k, int t, anistar_context *tctx) {
+    as_starset *ss = R->ss;
+    as_bjob *J = &R->jobs[k];
+    if (!J->live) return ANISTAR_OK;
+    anistar_status s;
+    if (J->rule == JOB_RULE1) {
+        memcpy(J->b.p, J->f.c, sizeof J->b.p);
+    } else {
+        const as_metric_frame mfv = ss->mf[J->v];
+        if ((s = pick_valid_on(R, t, tctx, &J->f, &mfv, &J->rng, J->b.p, &J->tries,
+                               &J->failures)) != ANISTAR_OK)
+            return s;
+    }
+    if ((s = as_starset_metric_in(ss, tctx, J->b.p, &J->b.mf)) != ANISTAR_OK) return s;
+    return as_starset_conflicts_on(ss, t, tctx, J->b.p, &J->b);
+}
+
+static anistar_status bpoint_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    return bpoint_on(arg, k, t, tctx);
+}
+
+/* Put job J's entry back in its queue (its star was taken by an earlier job of the batch,
+ * or the vertex limit was reached). */
+static anistar_status batch_putback(refiner *R, const as_bjob *J) {
+    as_starset *ss = R->ss;
+    if (J->rule < 2) {
+        as_star *st = ss->stars[J->e.star];
+        int32_t i = as_star_find(st, J->e.key.g);
+        if (i < 0 || (st->rf[i].queued & (1u << J->rule))) return ANISTAR_OK;
+        st->rf[i].queued |= (uint8_t)(1u << J->rule);
+    } else {
+        as_ftab_entry *te = as_starset_lookup(ss, J->e.key);
+        if (!te || te->queued || te->incpos < 0) return ANISTAR_OK;
+        te->queued = 1;
+    }
+    return as_queue_push(R->ctx, &R->q[J->rule], J->e);
+}
+
+/*
+ * One batch of refinement points (issue 15, docs/algorithm.md §11): the jobs batch_take
+ * took from queue k (the first of rules 1, 2, 3 that has one). design: deterministic reservations (Blelloch,
+ * Fineman, Gibbons, Shun, PPoPP 2012), with the jobs' queue order as their priority:
+ *  1. in parallel, each job's violation (rules 1-2, without the feature-size part, which
+ *     fills a cache: then in order), its point (the facet's surface center for rule 1,
+ *     Pick_valid with the job's own random state for rules 2-3), the point's frame and the
+ *     stars it conflicts with, all on the star set as it is;
+ *  2. in order, each job reserves its star and its conflicting stars; a job that finds
+ *     one reserved by an earlier job goes back to its queue (it comes out first next time);
+ *  3. the winners' points are inserted at once (as_starset_insert_batch: their stars are
+ *     disjoint, so each star update and each new star is a task of its own), then the
+ *     events are drained.
+ * Nothing here depends on the thread count: the batch, the jobs' random states (from the
+ * run's state and the job's place) and the order of every serial step are fixed, and each
+ * task reads the star set as it was before the batch. The points differ from those of one
+ * job at a time only in what the batch's earlier winners would have changed.
+ */
+static anistar_status batch_run(refiner *R, int k, int64_t maxv) {
+    as_starset *ss = R->ss;
+    anistar_status s;
+    const int32_t nj = R->njobs;
+    if (ss->pool && (s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) return s;
+    /* 1. violations (rules 1-2) */
+    if (k < 2) {
+        if (ss->pool && nj >= 2) {
+            if ((s = as_pool_run(ss->pool, nj, bviol_task, R)) != ANISTAR_OK) return s;
+        } else {
+            for (int32_t j = 0; j < nj; j++)
+                if ((s = bviol_task(R, j, 0, R->ctx)) != ANISTAR_OK) return s;
+        }
+        for (int32_t j = 0; j < nj; j++) {
+            as_bjob *J = &R->jobs[j];
+            if (k == 0) {
+                s = ANISTAR_OK;
+                J->viol = rule1_feature(ss, J->v, &J->f, J->viol, &J->why, &s);
+                if (s != ANISTAR_OK) return s;
+            }
+            J->live = J->viol > 0;
+        }
+    }
+    /* points, frames, conflicting stars */
+    uint64_t base = rng_next_at(&R->rng);
+    for (int32_t j = 0; j < nj; j++) R->jobs[j].rng = rng_seed(base + (uint64_t)j);
+    if (ss->pool && nj >= 2) {
+        s = as_pool_run(ss->pool, nj, bpoint_task, R);
+        as_starset_collect_counts(ss);
+        if (s != ANISTAR_OK) return s;
+    } else {
+        for (int32_t j = 0; j < nj; j++)
+            if ((s = bpoint_on(R, j, -1, R->ctx)) != ANISTAR_OK) return s;
+    }
+    /* 2. reservations, in the jobs' order */
+    if ((size_t)ss->n > R->cap_resv) {
+        size_t old = R->cap_resv;
+        if (as_grow(R->ctx, (void **)&R->resv, &R->cap_resv, (size_t)ss->n, sizeof *R->resv))
+            return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+        memset(R->resv + old, 0, (R->cap_resv - old) * sizeof *R->resv);
+    }
+    if (++R->bepoch == 0) {
+        memset(R->resv, 0, R->cap_resv * sizeof *R->resv);
+        R->bepoch = 1;
+    }
+    const uint32_t ep = R->bepoch;
+    if ((size_t)nj > R->cap_win &&
+        as_grow(R->ctx, (void **)&R->win, &R->cap_win, (size_t)nj, sizeof *R->win))
+        return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+    int32_t nw = 0;
+    int64_t room = maxv - (int64_t)(ss->n - ss->first_site);
+    for (int32_t j = 0; j < nj; j++) {
+        as_bjob *J = &R->jobs[j];
+        if (!J->live) continue;
+        R->cnt.pick_tries += J->tries;
+        R->cnt.pick_failures += J->failures;
+        int free_ = R->resv[J->v] != ep && nw < room;
+        for (size_t i = 0; i < J->b.nl && free_; i++) free_ = R->resv[J->b.list[i]] != ep;
+        if (!free_) {
+            if ((s = batch_putback(R, J)) != ANISTAR_OK) return s;
+            J->live = 0;
+            continue;
+        }
+        R->resv[J->v] = ep;
+        for (size_t i = 0; i < J->b.nl; i++) R->resv[J->b.list[i]] = ep;
+        if ((s = as_refine_check_point(ss, J->b.p, J->v, J->f.g, J->f.r)) != ANISTAR_OK)
+            return s;
+        if (J->rule == JOB_RULE3) stall_update(R, 1); /* the residue this insertion faces */
+        R->win[nw++] = J->b;
+    }
+    /* 3. the winners at once */
+    if ((s = as_starset_insert_batch(ss, R->win, nw)) != ANISTAR_OK) return s;
+    for (int32_t j = 0; j < nj; j++) {
+        const as_bjob *J = &R->jobs[j];
+        if (!J->live) continue;
+        R->cnt.rule[J->rule]++;
+        if (J->rule == JOB_RULE1) R->cnt.cause[J->why]++;
+    }
+    stall_update(R, 0);
+    return drain(R);
+}
+
 /* Queue for rule 1 every restricted facet of star v that violates it now (after its
  * alpha changed). */
 static anistar_status requeue_rule1(refiner *R, int32_t v) {
@@ -1228,6 +1472,35 @@ static void stop_message(refiner *R) {
     }
 }
 
+/* The limits checked before each job (or batch): 1 when the run stops (the reason in
+ * R->cnt, *s set on cancellation). */
+static int run_limits(refiner *R, int64_t maxv, double t1, uint64_t *steps, double *last_report,
+                      anistar_status *s) {
+    const as_starset *ss = R->ss;
+    if ((int64_t)(ss->n - ss->first_site) >= maxv) {
+        R->cnt.stop_reason = ANISTAR_STOP_MAX_VERTICES;
+        return 1;
+    }
+    double now = now_seconds();
+    if (R->prm->max_seconds > 0 && now - t1 > R->prm->max_seconds) {
+        R->cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
+        return 1;
+    }
+    if (R->n3 - R->low_at >= stall_budget(R)) {
+        R->cnt.stop_reason = ANISTAR_STOP_STALL;
+        return 1;
+    }
+    if ((*steps & 255) == 0 || now - *last_report >= 0.25) {
+        *last_report = now;
+        if (report(R, now)) {
+            *s = as_fail(R->ctx, ANISTAR_ECANCELED, "mesher: canceled by the progress callback");
+            return 1;
+        }
+    }
+    (*steps)++;
+    return 0;
+}
+
 anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                                   const as_field *field, const as_mesher_params *prm,
                                   as_run_ctl *ctl, anistar_mesh **out, as_starset **ss_out) {
@@ -1248,11 +1521,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         memset(&ctl->state, 0, sizeof ctl->state);
         ctl->state.eta_seconds = -1;
     }
-    /* splitmix64 of the seed: never zero for xorshift */
-    uint64_t z = prm->seed + 0x9E3779B97F4A7C15ULL;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    R.rng = (z ^ (z >> 31)) | 1;
+    R.rng = rng_seed(prm->seed);
     as_starset *ss = as_alloc(ctx, sizeof *ss);
     if (!ss) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
     R.ss = ss;
@@ -1334,6 +1603,20 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if (ctl && atomic_load(&ctl->stop)) {
             R.cnt.stop_reason = ANISTAR_STOP_REQUESTED;
             break;
+        }
+        if (prm->batch > 1 && !prm->part && ss->nopen == 0) {
+            /* batches (batch_step) for the rules' jobs; topology jobs and the rest one at
+             * a time below */
+            int k = 0;
+            while (k < 3 && R.q[k].n == 0) k++;
+            if (k < 3) {
+                if ((s = batch_take(&R, k)) != ANISTAR_OK) break;
+                if (R.njobs > 0) {
+                    if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) break;
+                    if ((s = batch_run(&R, k, maxv)) != ANISTAR_OK) break;
+                    continue;
+                }
+            }
         }
         int rule = JOB_NONE, cause = AS_CAUSE_SIZE;
         int32_t v = -1;
@@ -1433,27 +1716,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             }
             continue;
         }
-        if ((int64_t)(ss->n - ss->first_site) >= maxv) {
-            R.cnt.stop_reason = ANISTAR_STOP_MAX_VERTICES;
-            break;
-        }
-        double now = now_seconds();
-        if (prm->max_seconds > 0 && now - t1 > prm->max_seconds) {
-            R.cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
-            break;
-        }
-        if (R.n3 - R.low_at >= stall_budget(&R)) {
-            R.cnt.stop_reason = ANISTAR_STOP_STALL;
-            break;
-        }
-        if ((steps & 255) == 0 || now - last_report >= 0.25) {
-            last_report = now;
-            if (report(&R, now)) {
-                s = as_fail(ctx, ANISTAR_ECANCELED, "mesher: canceled by the progress callback");
-                break;
-            }
-        }
-        steps++;
+        if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) break;
         double p[3];
         if (rule == JOB_TOPOLOGY) {
             double d;
@@ -1507,6 +1770,10 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
     as_free(ctx, R.evpre, R.cap_evpre * sizeof *R.evpre);
     as_free(ctx, R.pcand, R.cap_pcand * sizeof *R.pcand);
+    for (size_t j = 0; j < R.cap_jobs; j++) as_bpoint_free(ctx, &R.jobs[j].b);
+    as_free(ctx, R.jobs, R.cap_jobs * sizeof *R.jobs);
+    as_free(ctx, R.win, R.cap_win * sizeof *R.win);
+    as_free(ctx, R.resv, R.cap_resv * sizeof *R.resv);
     as_free(ctx, R.piece, R.cap_piece * sizeof *R.piece);
     as_free(ctx, R.piece_refined, R.cap_piece_refined);
     if (s != ANISTAR_OK && done) {

@@ -577,6 +577,7 @@ void as_starset_destroy(as_starset *ss) {
         as_free(ctx, ss->ptask, ss->cap_ptask * sizeof *ss->ptask);
         as_pool_free(ss->pool);
     }
+    as_free(ctx, ss->btask, ss->cap_btask * sizeof *ss->btask);
     if (ss->kd) as_kdtree_free(ctx, ss->kd);
     if (ss->bi) as_boxindex_free(ctx, ss->bi);
     memset(ss, 0, sizeof *ss);
@@ -1392,6 +1393,51 @@ static anistar_status set_threads(as_starset *ss, int n) {
     return ANISTAR_OK;
 }
 
+/* After p entered star v (its facets before in old[0..nold), was_closed: whether it was
+ * closed before): the table and the events, and the star's zone regrowth or compaction
+ * queued for after p's own star (ss->regrow, ss->rebuild). */
+static anistar_status after_insert(as_starset *ss, int32_t v, const as_rfacet *old, int32_t nold,
+                                   int was_closed) {
+    as_star *sv = ss->stars[v];
+    anistar_status s;
+    ss->star_updates++;
+    if ((s = apply_diff(ss, v, old, nold)) != ANISTAR_OK) return s;
+    /* design: a star whose point count doubled since it was built holds points that
+     * entered while its conflict zone was large; compact it after this insertion.
+     * Rebuild it too when its zone grew: paper 5.3 says zones only shrink, but on a
+     * curved or thin surface a new facet's dual edge can cross S far away, and the
+     * sites of its surface ball were never offered to this star. */
+    double zb[6];
+    int grew = zone_grew(sv, &ss->mf[v], old, nold, zb, zb + 3);
+    if (!grew && was_closed && !sv->closed) {
+        /* design: a closed star that opens (a facet lost) has a zone no longer bounded
+         * by surface balls: the union of the circumballs of its tets around v, which
+         * holds sites never offered to it while it was closed. Offer it that zone
+         * (searched by growing balls, as any open star). */
+        memcpy(zb, sv->lo, sizeof sv->lo);
+        memcpy(zb + 3, sv->hi, sizeof sv->hi);
+        grew = 1;
+    }
+    if (grew) {
+        if ((s = push_i32(ss->ctx, &ss->regrow, &ss->cap_regrow, ss->nregrow, v)) !=
+            ANISTAR_OK)
+            return s;
+        if (ss->nregrow + 1 > ss->cap_regrow_box &&
+            as_grow(ss->ctx, (void **)&ss->regrow_box, &ss->cap_regrow_box,
+                    ss->nregrow + 1, 6 * sizeof *ss->regrow_box))
+            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+        memcpy(ss->regrow_box + 6 * ss->nregrow, zb, sizeof zb);
+        ss->nregrow++;
+    }
+    if (AS_STAR_BALL_ZONE(sv) && sv->nv > 24 && sv->nv > 2 * sv->nv_base) {
+        if ((s = push_i32(ss->ctx, &ss->rebuild, &ss->cap_rebuild, ss->nrebuild, v)) !=
+            ANISTAR_OK)
+            return s;
+        ss->nrebuild++;
+    }
+    return ANISTAR_OK;
+}
+
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
     anistar_status s;
     if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
@@ -1438,41 +1484,7 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
             old = ss->sc.old;
             nold = ss->sc.nold;
         }
-        ss->star_updates++;
-        if ((s = apply_diff(ss, v, old, nold)) != ANISTAR_OK) return s;
-        /* design: a star whose point count doubled since it was built holds points that
-         * entered while its conflict zone was large; compact it after this insertion.
-         * Rebuild it too when its zone grew: paper 5.3 says zones only shrink, but on a
-         * curved or thin surface a new facet's dual edge can cross S far away, and the
-         * sites of its surface ball were never offered to this star. */
-        double zb[6];
-        int grew = zone_grew(sv, &ss->mf[v], old, nold, zb, zb + 3);
-        if (!grew && was_closed && !sv->closed) {
-            /* design: a closed star that opens (a facet lost) has a zone no longer bounded
-             * by surface balls: the union of the circumballs of its tets around v, which
-             * holds sites never offered to it while it was closed. Offer it that zone
-             * (searched by growing balls, as any open star). */
-            memcpy(zb, sv->lo, sizeof sv->lo);
-            memcpy(zb + 3, sv->hi, sizeof sv->hi);
-            grew = 1;
-        }
-        if (grew) {
-            if ((s = push_i32(ss->ctx, &ss->regrow, &ss->cap_regrow, ss->nregrow, v)) !=
-                ANISTAR_OK)
-                return s;
-            if (ss->nregrow + 1 > ss->cap_regrow_box &&
-                as_grow(ss->ctx, (void **)&ss->regrow_box, &ss->cap_regrow_box,
-                        ss->nregrow + 1, 6 * sizeof *ss->regrow_box))
-                return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
-            memcpy(ss->regrow_box + 6 * ss->nregrow, zb, sizeof zb);
-            ss->nregrow++;
-        }
-        if (AS_STAR_BALL_ZONE(sv) && sv->nv > 24 && sv->nv > 2 * sv->nv_base) {
-            if ((s = push_i32(ss->ctx, &ss->rebuild, &ss->cap_rebuild, ss->nrebuild, v)) !=
-                ANISTAR_OK)
-                return s;
-            ss->nrebuild++;
-        }
+        if ((s = after_insert(ss, v, old, nold, was_closed)) != ANISTAR_OK) return s;
     }
     /* 2. p's star */
     if ((s = build_star(ss, &ss->ws, &ss->env, &ss->sc, st, p, gid, &ss->mf[gid], nl, 0)) !=
@@ -1481,6 +1493,169 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;
+    for (size_t k = 0; k < ss->nregrow; k++)
+        if ((s = regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k)) != ANISTAR_OK) return s;
+    ss->nregrow = 0;
+    for (size_t k = 0; k < ss->nrebuild; k++)
+        if ((s = compact_star(ss, ss->rebuild[k])) != ANISTAR_OK) return s;
+    ss->nrebuild = 0;
+    return ANISTAR_OK;
+}
+
+/* ---- batches of insertions (issue 15) ------------------------------------------------- */
+
+anistar_status as_starset_conflicts_on(as_starset *ss, int t, anistar_context *ctx,
+                                       const double p[3], as_bpoint *b) {
+    as_simws *w = t < 0 ? &ss->ws : &ss->tws[t];
+    size_t nl;
+    anistar_status s = conflicting_stars(ss, w, ctx, p, ss->n, &nl);
+    if (s != ANISTAR_OK) return s;
+    if ((nl > b->cap_list && as_grow(ctx, (void **)&b->list, &b->cap_list, nl, sizeof *b->list)) ||
+        (nl > b->cap_hints &&
+         as_grow(ctx, (void **)&b->hints, &b->cap_hints, nl, sizeof *b->hints)))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+    if (nl) {
+        memcpy(b->list, w->list, nl * sizeof *b->list);
+        memcpy(b->hints, w->hints, nl * sizeof *b->hints);
+    }
+    b->nl = nl;
+    return ANISTAR_OK;
+}
+
+void as_bpoint_free(anistar_context *ctx, as_bpoint *b) {
+    as_free(ctx, b->list, b->cap_list * sizeof *b->list);
+    as_free(ctx, b->hints, b->cap_hints * sizeof *b->hints);
+    b->list = b->hints = NULL;
+    b->cap_list = b->cap_hints = b->nl = 0;
+}
+
+/* One task of a batch's first step: insert site btask[k].gid into star btask[k].v (as
+ * insert_task). */
+static anistar_status binsert_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    as_starset *ss = arg;
+    const as_btask *bt = &ss->btask[k];
+    as_star *sv = ss->stars[bt->v];
+    as_star_scratch *sc = &ss->tsc[t];
+    as_ptask *pt = &ss->ptask[k];
+    int32_t gid = bt->gid;
+    pt->was_closed = sv->closed;
+    sv->hint = bt->hint;
+    anistar_status s = as_star_insert(&ss->tenv[t], sv, &ss->mf[bt->v], &gid, 1, sc, NULL);
+    if (s != ANISTAR_OK) return s;
+    as_parena *A = &ss->parena[t];
+    if (as_grow(tctx, (void **)&A->f, &A->cap, A->n + (size_t)sc->nold, sizeof *A->f))
+        return as_fail(tctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
+    if (sc->nold) memcpy(A->f + A->n, sc->old, (size_t)sc->nold * sizeof *A->f);
+    pt->thread = t;
+    pt->off = A->n;
+    pt->nold = sc->nold;
+    A->n += (size_t)sc->nold;
+    return ANISTAR_OK;
+}
+
+/* Build the star of point k of the batch on workspace w (env, sc). */
+static anistar_status bstar_on(as_starset *ss, as_simws *w, const as_star_env *env,
+                               as_star_scratch *sc, const as_bpoint *b) {
+    anistar_context *ctx = env->ctx;
+    if (b->nl > w->cap_list &&
+        as_grow(ctx, (void **)&w->list, &w->cap_list, b->nl, sizeof *w->list))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+    if (b->nl) memcpy(w->list, b->list, b->nl * sizeof *w->list);
+    int32_t gid = b->gid;
+    return build_star(ss, w, env, sc, ss->stars[gid], ss->xyz + 3 * (size_t)gid, gid,
+                      &ss->mf[gid], b->nl, 0);
+}
+
+static anistar_status bstar_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)tctx;
+    as_starset *ss = arg;
+    return bstar_on(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], &ss->bpts[k]);
+}
+
+anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np) {
+    anistar_status s;
+    if (np <= 0) return ANISTAR_OK;
+    if ((s = grow_points(ss, (int64_t)ss->n + np)) != ANISTAR_OK) return s;
+    size_t nt = 0;
+    for (int32_t j = 0; j < np; j++) {
+        int32_t gid = ss->n;
+        memcpy(ss->xyz + 3 * (size_t)gid, b[j].p, 3 * sizeof(double));
+        ss->mf[gid] = b[j].mf;
+        as_star *st = as_alloc(ss->ctx, sizeof *st);
+        if (!st) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
+        as_star_init(st, ss->ctx);
+        ss->n++;
+        ss->stars[gid] = st;
+        b[j].gid = gid;
+        nt += b[j].nl;
+    }
+    /* 1. every point into its conflicting stars (no star is in two lists): one task per
+     * star, then the table and the events in the tasks' order (as as_starset_insert) */
+    if (nt > ss->cap_btask &&
+        as_grow(ss->ctx, (void **)&ss->btask, &ss->cap_btask, nt, sizeof *ss->btask))
+        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
+    nt = 0;
+    for (int32_t j = 0; j < np; j++)
+        for (size_t k = 0; k < b[j].nl; k++) {
+            as_btask *bt = &ss->btask[nt++];
+            bt->v = b[j].list[k];
+            bt->gid = b[j].gid;
+            bt->hint = b[j].hints[k];
+        }
+    const int par = ss->pool && nt >= 2;
+    if (par) {
+        if (nt > ss->cap_ptask &&
+            as_grow(ss->ctx, (void **)&ss->ptask, &ss->cap_ptask, nt, sizeof *ss->ptask))
+            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
+        thread_envs(ss);
+        for (int t = 0; t < ss->nthreads; t++) ss->parena[t].n = 0;
+        if ((s = as_pool_run(ss->pool, (int32_t)nt, binsert_task, ss)) != ANISTAR_OK) return s;
+    }
+    for (size_t k = 0; k < nt; k++) {
+        const as_btask *bt = &ss->btask[k];
+        as_star *sv = ss->stars[bt->v];
+        const as_rfacet *old;
+        int32_t nold;
+        int was_closed;
+        if (par) {
+            const as_ptask *pt = &ss->ptask[k];
+            old = ss->parena[pt->thread].f + pt->off;
+            nold = pt->nold;
+            was_closed = pt->was_closed;
+        } else {
+            int32_t gid = bt->gid;
+            was_closed = sv->closed;
+            sv->hint = bt->hint;
+            if ((s = as_star_insert(&ss->env, sv, &ss->mf[bt->v], &gid, 1, &ss->sc, NULL)) !=
+                ANISTAR_OK)
+                return s;
+            old = ss->sc.old;
+            nold = ss->sc.nold;
+        }
+        if ((s = after_insert(ss, bt->v, old, nold, was_closed)) != ANISTAR_OK) return s;
+    }
+    /* 2. the points' own stars, each from its seeds and grown from the kd-tree, which
+     * holds every point of the batch: a point in conflict with another's star is found
+     * there as any site (one task per point: a build reads only its seeding stars, which
+     * no other point of the batch entered) */
+    for (int32_t j = 0; j < np; j++)
+        if ((s = as_kdtree_insert(ss->ctx, ss->kd, b[j].p, b[j].gid)) != ANISTAR_OK) return s;
+    if (ss->pool && np >= 2) {
+        if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) return s;
+        ss->bpts = b;
+        s = as_pool_run(ss->pool, np, bstar_task, ss);
+        ss->bpts = NULL;
+        as_starset_collect_counts(ss);
+        if (s != ANISTAR_OK) return s;
+    } else {
+        for (int32_t j = 0; j < np; j++)
+            if ((s = bstar_on(ss, &ss->ws, &ss->env, &ss->sc, &b[j])) != ANISTAR_OK) return s;
+    }
+    for (int32_t j = 0; j < np; j++) {
+        as_star *st = ss->stars[b[j].gid];
+        for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
+        if ((s = apply_diff(ss, b[j].gid, NULL, 0)) != ANISTAR_OK) return s;
+    }
     for (size_t k = 0; k < ss->nregrow; k++)
         if ((s = regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k)) != ANISTAR_OK) return s;
     ss->nregrow = 0;

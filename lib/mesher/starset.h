@@ -65,6 +65,19 @@ typedef struct as_parena {
  * caller's; with threads each slot has its own (ss->tws), so that Pick_valid's candidates
  * are simulated at once (docs/algorithm.md, "Threads").
  */
+/* A point of a batch of insertions (as_starset_insert_batch). */
+typedef struct as_bpoint {
+    double p[3];
+    as_metric_frame mf;      /* its frame (as_starset_metric_in) */
+    int32_t *list, *hints;   /* the stars it conflicts with, a conflicting tet of each */
+    size_t nl, cap_list, cap_hints;
+    int32_t gid;             /* out: its id */
+} as_bpoint;
+/* One star update of a batch: site gid into star v (hint: a tet of v in conflict). */
+typedef struct as_btask {
+    int32_t v, gid, hint;
+} as_btask;
+
 typedef struct as_simws {
     uint32_t *stamp;         /* per id: membership marks (ss->ws: in the per-id block) */
     size_t cap_stamp;        /* a thread's own stamp array's capacity (0 for ss->ws) */
@@ -164,6 +177,9 @@ typedef struct as_starset {
     as_ptask *ptask;
     size_t cap_ptask;
     int32_t pgid;            /* the site being inserted */
+    as_btask *btask;         /* a batch's star updates (as_starset_insert_batch) */
+    size_t cap_btask;
+    as_bpoint *bpts;         /* the batch's points while their stars are built */
 
     /* statistics */
     uint64_t star_updates, star_rebuilds, zone_regrowths; /* builds, conflict tests: ws */
@@ -224,6 +240,24 @@ anistar_status as_starset_add_poles(as_starset *ss, const double *smp, int32_t n
  * EINTERNAL.
  */
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid);
+
+/*
+ * Batches of insertions (issue 15; docs/algorithm.md, "Threads"). as_starset_conflicts_on
+ * puts into b->list and b->hints (grown with ctx) the stars that p conflicts with now and a
+ * conflicting tet of each, searched on thread slot t's workspace (-1: the caller's; slot
+ * workspaces need as_starset_simulate_prepare first); it changes nothing of ss. Then
+ * as_starset_insert_batch inserts the np points b[0..np) at once, as sites ss->n,
+ * ss->n + 1, ... (b[j].gid), given that no star is in two of their lists and the lists and
+ * frames were computed on the star set as it is: each point enters its stars (one task per
+ * star), then each point's star is built (one task per point) with every point of the
+ * batch in the kd-tree, then the table, the events, zone regrowths and compactions in a
+ * fixed order. The result does not depend on the thread count. Same returns as
+ * as_starset_insert. as_bpoint_free frees a point's lists.
+ */
+anistar_status as_starset_conflicts_on(as_starset *ss, int t, anistar_context *ctx,
+                                       const double p[3], as_bpoint *b);
+anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np);
+void as_bpoint_free(anistar_context *ctx, as_bpoint *b);
 
 /*
  * Check every star on the ball zone (AS_STAR_BALL_ZONE) for which need(arg, v) is nonzero

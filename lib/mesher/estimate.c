@@ -52,16 +52,17 @@ static void tangent_basis(const double n[3], double t1[3], double t2[3]) {
 
 /* gamma between M_p and the metric at the point of S a step of M_p length d from p along
  * the tangent direction u (unit); *g = 1 when the projection finds no surface. */
-static anistar_status gamma_at(as_starset *ss, const double p[3], const as_metric_frame *mf,
-                               const double u[3], double ulen, double d, double *g) {
+static anistar_status gamma_at(const as_starset *ss, anistar_context *ctx, const double p[3],
+                               const as_metric_frame *mf, const double u[3], double ulen, double d,
+                               double *g) {
     double q[3];
     for (int i = 0; i < 3; i++) q[i] = p[i] + (d / ulen) * u[i];
     *g = 1;
-    anistar_status s = as_surface_project(ss->ctx, ss->surf, q, q);
+    anistar_status s = as_surface_project(ctx, ss->surf, q, q);
     if (s == ANISTAR_ENOSURFACE) return ANISTAR_OK;
     if (s != ANISTAR_OK) return s;
     as_metric_frame mq;
-    if ((s = as_starset_metric(ss, q, &mq)) != ANISTAR_OK) return s;
+    if ((s = as_starset_metric_in(ss, ctx, q, &mq)) != ANISTAR_OK) return s;
     *g = as_metric_distortion(mf, &mq);
     return ANISTAR_OK;
 }
@@ -76,7 +77,8 @@ static anistar_status gamma_at(as_starset *ss, const double p[3], const as_metri
  * the frames turn by small angles, linearly after), so dr is searched, not extrapolated
  * from one step.
  */
-static anistar_status distortion_radius(as_starset *ss, const as_mesher_params *prm,
+static anistar_status distortion_radius(const as_starset *ss, anistar_context *ctx,
+                                        const as_mesher_params *prm,
                                         const double p[3], const as_metric_frame *mf,
                                         const double t1[3], const double t2[3], double cap,
                                         double *out) {
@@ -92,7 +94,7 @@ static anistar_status distortion_radius(as_starset *ss, const as_mesher_params *
         double lo = 0, hi = best / 8;
         anistar_status s;
         for (;;) {
-            if ((s = gamma_at(ss, p, mf, u, ulen, hi, &g)) != ANISTAR_OK) return s;
+            if ((s = gamma_at(ss, ctx, p, mf, u, ulen, hi, &g)) != ANISTAR_OK) return s;
             if (g >= prm->gamma0) break;
             lo = hi;
             hi *= 2;
@@ -104,7 +106,7 @@ static anistar_status distortion_radius(as_starset *ss, const as_mesher_params *
         if (hi < 0) continue;
         while (hi - lo > 0.05 * hi) {
             double mid = 0.5 * (lo + hi);
-            if ((s = gamma_at(ss, p, mf, u, ulen, mid, &g)) != ANISTAR_OK) return s;
+            if ((s = gamma_at(ss, ctx, p, mf, u, ulen, mid, &g)) != ANISTAR_OK) return s;
             if (g >= prm->gamma0) hi = mid;
             else lo = mid;
         }
@@ -114,66 +116,107 @@ static anistar_status distortion_radius(as_starset *ss, const as_mesher_params *
     return ANISTAR_OK;
 }
 
+/* The estimate's work on one sample point. */
+typedef struct as_est {
+    const as_starset *ss;
+    const as_mesher_params *prm;
+    const as_point_sample *smp;
+    double *dens;     /* per sample point: vertices per unit area (-1: a singular point) */
+    as_idlist *fids;  /* per thread slot: the feature-size queries' scratch */
+} as_est;
+
+/* The vertex density the sizes ask for at sample point i (threads: reads only). */
+static anistar_status est_task(void *arg, int32_t i, int t, anistar_context *ctx) {
+    const as_est *E = arg;
+    const as_starset *ss = E->ss;
+    const as_mesher_params *prm = E->prm;
+    const double *p = E->smp->points + 3 * (size_t)i;
+    const double ideal = 1.5 * sqrt(3.0); /* two ideal triangles per vertex, per h^2 */
+    double n[3], t1[3], t2[3];
+    int sing = 0;
+    E->dens[i] = -1;
+    anistar_status s = as_surface_normal_at(ctx, ss->surf, p, n, &sing);
+    if (s != ANISTAR_OK || sing) return s;
+    tangent_basis(n, t1, t2);
+    as_metric_frame mf;
+    if ((s = as_starset_metric_in(ss, ctx, p, &mf)) != ANISTAR_OK) return s;
+    /* sqrt(det) of the metric restricted to the tangent plane: |F t1 x F t2| */
+    double a[3], b[3], c[3];
+    as_metric_apply(&mf, t1, a);
+    as_metric_apply(&mf, t2, b);
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+    double dens = sqrt(dot3(c, c));
+    double h = prm->r0;
+    double dr;
+    if ((s = distortion_radius(ss, ctx, prm, p, &mf, t1, t2, sqrt(3.0) * h, &dr)) != ANISTAR_OK)
+        return s;
+    if (dr / sqrt(3.0) < h) h = dr / sqrt(3.0);
+    double lfs;
+    int exact;
+    if ((s = as_feature_lfs(ctx, &ss->feat, &mf, p, h / ss->alpha, &E->fids[t], &lfs, &exact)) !=
+        ANISTAR_OK)
+        return s;
+    if (ss->alpha * lfs < h) h = ss->alpha * lfs;
+    double d = dens / (ideal * h * h);
+    /* the Euclidean bounds: edges of at least hmin and at most hmax (an equilateral
+     * triangle of side L has circumradius L / sqrt 3) */
+    if (ss->hmin > 0 && d > 3 / (ideal * ss->hmin * ss->hmin))
+        d = 3 / (ideal * ss->hmin * ss->hmin);
+    if (ss->hmax > 0 && d < 3 / (ideal * ss->hmax * ss->hmax))
+        d = 3 / (ideal * ss->hmax * ss->hmax);
+    E->dens[i] = d;
+    return ANISTAR_OK;
+}
+
 anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
                                   double *bytes) {
     anistar_context *ctx = ss->ctx;
+    const size_t bytes0 = ctx->bytes; /* before the estimate's own arrays */
     *vertices = 0;
     *bytes = 0;
     as_point_sample smp;
     anistar_status s = (ss->sampler ? as_sampler_sample(ctx, ss->sampler, AS_ESTIMATE_SAMPLE, &smp)
                                     : as_surface_sample(ctx, ss->surf, AS_ESTIMATE_SAMPLE, &smp));
     if (s != ANISTAR_OK) return s;
-    size_t *count = as_alloc_array(ctx, smp.ncomponents ? smp.ncomponents : 1, sizeof *count);
-    if (!count) {
-        as_surface_sample_free(ctx, &smp);
-        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (estimate)");
+    const size_t nc = smp.ncomponents ? smp.ncomponents : 1;
+    const int T = ss->pool ? as_pool_threads(ss->pool) : 1;
+    size_t *count = as_alloc_array(ctx, nc, sizeof *count);
+    double *dens = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *dens);
+    as_idlist *fids = as_alloc_array(ctx, (size_t)T, sizeof *fids);
+    if (!count || !dens || !fids) {
+        s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (estimate)");
+        goto done;
     }
-    memset(count, 0, (smp.ncomponents ? smp.ncomponents : 1) * sizeof *count);
+    memset(count, 0, nc * sizeof *count);
+    memset(fids, 0, (size_t)T * sizeof *fids);
     for (size_t i = 0; i < smp.n; i++) count[smp.component[i]]++;
-    const double ideal = 1.5 * sqrt(3.0); /* two ideal triangles per vertex, per h^2 */
+    /* design: the sample points' densities on the threads (each reads only the surface,
+     * the field and the feature points), then their sum in the points' order: the same
+     * bits for any thread count */
+    as_est E = {ss, prm, &smp, dens, fids};
+    if (ss->pool) {
+        s = as_pool_run(ss->pool, (int32_t)smp.n, est_task, &E);
+    } else {
+        for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) s = est_task(&E, (int32_t)i, 0, ctx);
+    }
     double sum = 0;
     for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) {
-        const double *p = smp.points + 3 * i;
+        if (dens[i] < 0) continue;
         double w = smp.area[smp.component[i]] / (double)count[smp.component[i]];
-        double n[3], t1[3], t2[3];
-        int sing = 0;
-        if ((s = as_surface_normal_at(ctx, ss->surf, p, n, &sing)) != ANISTAR_OK) break;
-        if (sing) continue;
-        tangent_basis(n, t1, t2);
-        as_metric_frame mf;
-        if ((s = as_starset_metric(ss, p, &mf)) != ANISTAR_OK) break;
-        /* sqrt(det) of the metric restricted to the tangent plane: |F t1 x F t2| */
-        double a[3], b[3], c[3];
-        as_metric_apply(&mf, t1, a);
-        as_metric_apply(&mf, t2, b);
-        c[0] = a[1] * b[2] - a[2] * b[1];
-        c[1] = a[2] * b[0] - a[0] * b[2];
-        c[2] = a[0] * b[1] - a[1] * b[0];
-        double dens = sqrt(dot3(c, c));
-        double h = prm->r0;
-        double dr;
-        if ((s = distortion_radius(ss, prm, p, &mf, t1, t2, sqrt(3.0) * h, &dr)) != ANISTAR_OK)
-            break;
-        if (dr / sqrt(3.0) < h) h = dr / sqrt(3.0);
-        double lfs;
-        int exact;
-        if ((s = as_feature_lfs(ctx, &ss->feat, &mf, p, h / ss->alpha, &ss->fids, &lfs,
-                                &exact)) != ANISTAR_OK)
-            break;
-        if (ss->alpha * lfs < h) h = ss->alpha * lfs;
-        double d = dens / (ideal * h * h);
-        /* the Euclidean bounds: edges of at least hmin and at most hmax (an equilateral
-         * triangle of side L has circumradius L / sqrt 3) */
-        if (ss->hmin > 0 && d > 3 / (ideal * ss->hmin * ss->hmin))
-            d = 3 / (ideal * ss->hmin * ss->hmin);
-        if (ss->hmax > 0 && d < 3 / (ideal * ss->hmax * ss->hmax))
-            d = 3 / (ideal * ss->hmax * ss->hmax);
-        sum += w * d;
+        sum += w * dens[i];
     }
-    as_free(ctx, count, (smp.ncomponents ? smp.ncomponents : 1) * sizeof *count);
+    if (s == ANISTAR_OK) {
+        *vertices = AS_ESTIMATE_FILL * sum;
+        *bytes = (double)bytes0 + AS_ESTIMATE_BYTES_PER_VERTEX * *vertices;
+    }
+done:
+    if (fids)
+        for (int t = 0; t < T; t++) as_idlist_free(ctx, &fids[t]);
+    as_free(ctx, fids, (size_t)T * sizeof *fids);
+    as_free(ctx, dens, (smp.n ? smp.n : 1) * sizeof *dens);
+    as_free(ctx, count, nc * sizeof *count);
     as_surface_sample_free(ctx, &smp);
-    if (s != ANISTAR_OK) return s;
-    *vertices = AS_ESTIMATE_FILL * sum;
-    *bytes = (double)ctx->bytes + AS_ESTIMATE_BYTES_PER_VERTEX * *vertices;
-    return ANISTAR_OK;
+    return s;
 }

@@ -159,9 +159,44 @@ static anistar_status thin_points(anistar_context *ctx, as_feature *fe, double h
     return ANISTAR_OK;
 }
 
+/* The medial balls of a sample (as_feature_build's threads). */
+typedef struct as_fball {
+    const as_surface *surf;
+    const as_kdtree *kd;
+    const as_point_sample *smp;
+    struct as_fball_out {
+        double c[3], rho; /* rho = +inf: none kept */
+    } *out;               /* 2 per sample point: the sides -n, +n */
+} as_fball;
+
+static anistar_status fball_task(void *arg, int32_t i, int t, anistar_context *ctx) {
+    (void)t;
+    const as_fball *B = arg;
+    const double *q = B->smp->points + 3 * (size_t)i;
+    const double cos_max = cos(AS_FEATURE_ANGLE);
+    struct as_fball_out *o = B->out + 2 * (size_t)i;
+    o[0].rho = o[1].rho = INFINITY;
+    double n[3];
+    int sing = 0;
+    anistar_status s = as_surface_normal_at(ctx, B->surf, q, n, &sing);
+    if (s != ANISTAR_OK || sing) return s;
+    for (int side = -1; side <= 1; side += 2) {
+        double d[3] = {side * n[0], side * n[1], side * n[2]}, rho, cosang;
+        if ((s = medial_ball(ctx, B->surf, B->kd, B->smp->points, i, d, &rho, &cosang)) !=
+            ANISTAR_OK)
+            return s;
+        if (!isfinite(rho) || cosang > cos_max) continue;
+        struct as_fball_out *x = &o[(side + 1) / 2];
+        for (int k = 0; k < 3; k++) x->c[k] = q[k] + rho * d[k];
+        x->rho = rho;
+    }
+    return ANISTAR_OK;
+}
+
 anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_sampler *sp,
-                                as_feature *fe) {
+                                as_pool *pool, as_feature *fe) {
     memset(fe, 0, sizeof *fe);
+    struct as_fball_out *ball = NULL;
     as_point_sample smp;
     anistar_status s = sp ? as_sampler_sample(ctx, sp, AS_FEATURE_SAMPLE, &smp)
                           : as_surface_sample(ctx, surf, AS_FEATURE_SAMPLE, &smp);
@@ -175,27 +210,28 @@ anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as
                   : as_surface_is_image(surf) ? smp.spacing / 2
                                               : 1e-4 * surf->radius;
     if (!(fe->floor_e > 0)) fe->floor_e = 1e-4 * surf->radius;
-    const double cos_max = cos(AS_FEATURE_ANGLE);
-    for (size_t i = 0; i < smp.n; i++) {
-        const double *q = smp.points + 3 * i;
-        double n[3];
-        int sing = 0;
-        if ((s = as_surface_normal_at(ctx, surf, q, n, &sing)) != ANISTAR_OK) goto done;
-        if (sing) continue;
-        for (int side = -1; side <= 1; side += 2) {
-            double d[3] = {side * n[0], side * n[1], side * n[2]}, rho, cosang;
-            if ((s = medial_ball(ctx, surf, kd, smp.points, (int32_t)i, d, &rho, &cosang)) !=
-                ANISTAR_OK)
-                goto done;
-            if (!isfinite(rho) || cosang > cos_max) continue;
-            double c[3] = {q[0] + rho * d[0], q[1] + rho * d[1], q[2] + rho * d[2]};
-            if ((s = add_point(ctx, fe, c, rho)) != ANISTAR_OK) goto done;
-        }
+    /* design: the medial balls of the sample points on the threads (each reads only the
+     * surface and the sample's kd-tree), then kept in the points' order: the same medial
+     * points for any thread count */
+    ball = as_alloc_array(ctx, smp.n ? 2 * smp.n : 1, sizeof *ball);
+    if (!ball) {
+        s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (medial points)");
+        goto done;
     }
+    as_fball B = {surf, kd, &smp, ball};
+    if (pool) {
+        s = as_pool_run(pool, (int32_t)smp.n, fball_task, &B);
+    } else {
+        for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) s = fball_task(&B, (int32_t)i, 0, ctx);
+    }
+    for (size_t i = 0; i < 2 * smp.n && s == ANISTAR_OK; i++)
+        if (isfinite(ball[i].rho)) s = add_point(ctx, fe, ball[i].c, ball[i].rho);
+    if (s != ANISTAR_OK) goto done;
     if (fe->n > 0) s = thin_points(ctx, fe, 0.25 * (smp.spacing > 0 ? smp.spacing : fe->floor_e));
     if (s == ANISTAR_OK && fe->n > 0)
         s = as_kdtree_build(ctx, fe->pts, NULL, (size_t)fe->n, &fe->kd);
 done:
+    if (ball) as_free(ctx, ball, (smp.n ? 2 * smp.n : 1) * sizeof *ball);
     if (kd) as_kdtree_free(ctx, kd);
     as_surface_sample_free(ctx, &smp);
     if (s != ANISTAR_OK) as_feature_free(ctx, fe);

@@ -28,6 +28,7 @@
 #include "core.h"
 #include "geom/kdtree.h"
 #include "geom/metric.h"
+#include "pool.h"
 #include "surface/surface.h"
 
 /* Surface sample size, and the separation angle (radians, 120 degrees) of the kept
@@ -63,7 +64,7 @@ typedef struct as_feature {
  *     degrees).
  */
 anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as_sampler *sp,
-                                as_feature *fe);
+                                as_pool *pool, as_feature *fe);
 
 void as_feature_free(anistar_context *ctx, as_feature *fe);
 

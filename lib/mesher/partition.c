@@ -659,6 +659,7 @@ anistar_status as_partition_run(anistar_context *ctx, const as_surface *surf,
         P->ctx.last_status = ANISTAR_OK;
         P->prm = *prm;
         P->prm.threads = 1;
+        P->prm.batch = 1; /* the hook judges one job at a time (refine.c) */
         P->prm.optimize = 0;
         P->prm.seeds = NULL;
         P->prm.nseeds = 0;

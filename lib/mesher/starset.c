@@ -505,7 +505,7 @@ anistar_status as_starset_init_threads(as_starset *ss, anistar_context *ctx,
     /* design: one analysis of S for the three samples of the run's start (feature points,
      * estimate, initial sites); freed once the initial sites are in (refine.c) */
     if ((s = as_sampler_new(ctx, surf, ss->pool, &ss->sampler)) != ANISTAR_OK) return s;
-    if ((s = as_feature_build(ctx, surf, ss->sampler, &ss->feat)) != ANISTAR_OK) return s;
+    if ((s = as_feature_build(ctx, surf, ss->sampler, ss->pool, &ss->feat)) != ANISTAR_OK) return s;
     ss->alpha = AS_FEATURE_ALPHA;
     if ((s = as_boxindex_new(ctx, &ss->bi)) != ANISTAR_OK) return s;
     ss->ws.spare = as_alloc(ctx, sizeof *ss->ws.spare);
@@ -1049,24 +1049,76 @@ static int32_t find_keep(const as_rfacet *keep, int32_t n, const as_gid g[3]) {
     return -1;
 }
 
+/*
+ * Star v anew, on workspace w (env, sc): regrown (compact = 0: offered the sites of box,
+ * lo and hi where its zone grew, see zone_grew; NULL: its whole zone) or compacted
+ * (compact = 1: rebuilt from its own vertices, then grown). Its facets from before are
+ * appended to arena A (*off, *nold); the fresh flags are set, the queue flags of the
+ * facets that survived a compaction kept. It reads only the star, the points and the
+ * kd-tree: the table, the events and the counters are the caller's (restar_finish).
+ */
+static anistar_status restar_on(as_starset *ss, as_simws *w, const as_star_env *env,
+                                as_star_scratch *sc, as_parena *A, int32_t v, const double *box,
+                                int compact, size_t *off, int32_t *nold) {
+    anistar_context *ctx = env->ctx;
+    as_star *st = ss->stars[v];
+    anistar_status s;
+    const int32_t nkeep = st->nrf;
+    if (as_grow(ctx, (void **)&A->f, &A->cap, A->n + (size_t)nkeep, sizeof *A->f))
+        return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+    *off = A->n;
+    *nold = nkeep;
+    if (nkeep) memcpy(A->f + A->n, st->rf, (size_t)nkeep * sizeof *st->rf);
+    A->n += (size_t)nkeep;
+    const as_rfacet *keep = A->f + *off;
+    uint32_t ep = ws_epoch(ss, w);
+    if (compact) {
+        size_t nb = 0;
+        w->stamp[v] = ep;
+        for (int32_t k = 0; k < nkeep; k++)
+            for (int j = 0; j < 3; j++) {
+                int32_t q = keep[k].g[j];
+                if (q < 8 || w->stamp[q] == ep) continue;
+                w->stamp[q] = ep;
+                if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nb, q)) != ANISTAR_OK) return s;
+                nb++;
+            }
+        if ((s = as_star_rebuild(env, st, &ss->mf[v], w->batch, (int32_t)nb, sc)) != ANISTAR_OK)
+            return s;
+        box = NULL;
+    } else {
+        for (int32_t k = 0; k < as_star_nv(st); k++) w->stamp[as_star_vertex_gid(st, k)] = ep;
+    }
+    if ((s = grow_star_box(ss, w, env, sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
+    if (compact) st->nv_base = st->nv;
+    /* the queue flags of facets that survived a compaction stay valid: copy them over; the
+     * others are new since before (events) */
+    for (int32_t k = 0; k < st->nrf; k++) {
+        int32_t o = find_keep(keep, nkeep, st->rf[k].g);
+        if (compact && o >= 0) st->rf[k].queued = keep[o].queued;
+        st->rf[k].fresh = o < 0;
+    }
+    return ANISTAR_OK;
+}
+
+/* Regrow or compact star v on the caller's workspace, then apply the difference. */
+static anistar_status restar(as_starset *ss, int32_t v, const double *box, int compact) {
+    as_parena A = {ss->keep, 0, ss->cap_keep};
+    size_t off = 0;
+    int32_t nold = 0;
+    anistar_status s = restar_on(ss, &ss->ws, &ss->env, &ss->sc, &A, v, box, compact, &off, &nold);
+    ss->keep = A.f;
+    ss->cap_keep = A.cap;
+    if (s != ANISTAR_OK) return s;
+    if (compact) ss->star_rebuilds++;
+    else ss->zone_regrowths++;
+    return apply_diff(ss, v, ss->keep + off, nold);
+}
+
 /* Offer star v the sites of box (lo, hi: where its zone grew, see zone_grew) and apply
  * the difference with its facets from before. */
 static anistar_status regrow_star(as_starset *ss, int32_t v, const double *box) {
-    as_star *st = ss->stars[v];
-    anistar_status s;
-    if ((size_t)st->nrf > ss->cap_keep &&
-        as_grow(ss->ctx, (void **)&ss->keep, &ss->cap_keep, (size_t)st->nrf, sizeof *ss->keep))
-        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
-    int32_t nkeep = st->nrf;
-    if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
-    uint32_t ep = next_epoch(ss);
-    for (int32_t k = 0; k < as_star_nv(st); k++) ss->ws.stamp[as_star_vertex_gid(st, k)] = ep;
-    if ((s = grow_star_box(ss, &ss->ws, &ss->env, &ss->sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK)
-        return s;
-    ss->zone_regrowths++;
-    for (int32_t k = 0; k < st->nrf; k++)
-        st->rf[k].fresh = find_keep(ss->keep, nkeep, st->rf[k].g) < 0;
-    return apply_diff(ss, v, ss->keep, nkeep);
+    return restar(ss, v, box, 0);
 }
 
 /* Record that star st is right within reach with the sites so far. */
@@ -1281,40 +1333,7 @@ done:
 
 /* Rebuild star v from its neighbours and the kd-tree (as a new star), then apply the
  * difference with its facets from before. */
-static anistar_status compact_star(as_starset *ss, int32_t v) {
-    as_star *st = ss->stars[v];
-    anistar_status s;
-    if ((size_t)st->nrf > ss->cap_keep &&
-        as_grow(ss->ctx, (void **)&ss->keep, &ss->cap_keep, (size_t)st->nrf, sizeof *ss->keep))
-        return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory");
-    int32_t nkeep = st->nrf;
-    if (nkeep) memcpy(ss->keep, st->rf, (size_t)nkeep * sizeof *st->rf);
-    uint32_t ep = next_epoch(ss);
-    size_t nb = 0;
-    ss->ws.stamp[v] = ep;
-    for (int32_t k = 0; k < nkeep; k++)
-        for (int j = 0; j < 3; j++) {
-            int32_t q = ss->keep[k].g[j];
-            if (q < 8 || ss->ws.stamp[q] == ep) continue;
-            ss->ws.stamp[q] = ep;
-            if ((s = push_i32(ss->ctx, &ss->ws.batch, &ss->ws.cap_batch, nb, q)) != ANISTAR_OK) return s;
-            nb++;
-        }
-    if ((s = as_star_rebuild(&ss->env, st, &ss->mf[v], ss->ws.batch, (int32_t)nb, &ss->sc)) !=
-        ANISTAR_OK)
-        return s;
-    if ((s = grow_star(ss, st, &ss->mf[v], ep)) != ANISTAR_OK) return s;
-    st->nv_base = st->nv;
-    ss->star_rebuilds++;
-    /* the queue flags of facets that survived stay valid: copy them over; the others are
-     * new since before the compaction (events) */
-    for (int32_t k = 0; k < st->nrf; k++) {
-        int32_t o = find_keep(ss->keep, nkeep, st->rf[k].g);
-        if (o >= 0) st->rf[k].queued = ss->keep[o].queued;
-        st->rf[k].fresh = o < 0;
-    }
-    return apply_diff(ss, v, ss->keep, nkeep);
-}
+static anistar_status compact_star(as_starset *ss, int32_t v) { return restar(ss, v, NULL, 1); }
 
 /* Each thread slot's environment: the star set's (its points may have moved since:
  * grow_points) with the slot's context. */
@@ -1438,6 +1457,51 @@ static anistar_status after_insert(as_starset *ss, int32_t v, const as_rfacet *o
     return ANISTAR_OK;
 }
 
+/* One task of restars: star k of the regrowths or compactions. */
+static anistar_status restar_task(void *arg, int32_t k, int t, anistar_context *tctx) {
+    (void)tctx;
+    as_starset *ss = arg;
+    const int compact = ss->restar_compact;
+    int32_t v = compact ? ss->rebuild[k] : ss->regrow[k];
+    as_ptask *pt = &ss->ptask[k];
+    pt->thread = t;
+    return restar_on(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], &ss->parena[t], v,
+                     compact ? NULL : ss->regrow_box + 6 * k, compact, &pt->off, &pt->nold);
+}
+
+/* The zone regrowths (compact = 0) or the compactions (1) queued by the insertions just
+ * made, in their order. design: with threads, one task per star (each reads only its star,
+ * the points and the kd-tree; no star is queued twice), then the table and the events in
+ * the stars' order, as the serial loop has them. */
+static anistar_status restars(as_starset *ss, int compact) {
+    anistar_status s = ANISTAR_OK;
+    const size_t n = compact ? ss->nrebuild : ss->nregrow;
+    if (!ss->pool || n < 2) {
+        for (size_t k = 0; k < n && s == ANISTAR_OK; k++)
+            s = compact ? compact_star(ss, ss->rebuild[k])
+                        : regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k);
+    } else {
+        if (n > ss->cap_ptask &&
+            as_grow(ss->ctx, (void **)&ss->ptask, &ss->cap_ptask, n, sizeof *ss->ptask))
+            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
+        if ((s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) return s;
+        for (int t = 0; t < ss->nthreads; t++) ss->parena[t].n = 0;
+        ss->restar_compact = compact;
+        s = as_pool_run(ss->pool, (int32_t)n, restar_task, ss);
+        as_starset_collect_counts(ss);
+        for (size_t k = 0; k < n && s == ANISTAR_OK; k++) {
+            const as_ptask *pt = &ss->ptask[k];
+            int32_t v = compact ? ss->rebuild[k] : ss->regrow[k];
+            if (compact) ss->star_rebuilds++;
+            else ss->zone_regrowths++;
+            s = apply_diff(ss, v, ss->parena[pt->thread].f + pt->off, pt->nold);
+        }
+    }
+    if (compact) ss->nrebuild = 0;
+    else ss->nregrow = 0;
+    return s;
+}
+
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
     anistar_status s;
     if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
@@ -1493,13 +1557,8 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
     for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
     if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
     if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;
-    for (size_t k = 0; k < ss->nregrow; k++)
-        if ((s = regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k)) != ANISTAR_OK) return s;
-    ss->nregrow = 0;
-    for (size_t k = 0; k < ss->nrebuild; k++)
-        if ((s = compact_star(ss, ss->rebuild[k])) != ANISTAR_OK) return s;
-    ss->nrebuild = 0;
-    return ANISTAR_OK;
+    if ((s = restars(ss, 0)) != ANISTAR_OK) return s;
+    return restars(ss, 1);
 }
 
 /* ---- batches of insertions (issue 15) ------------------------------------------------- */
@@ -1656,13 +1715,8 @@ anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np)
         for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
         if ((s = apply_diff(ss, b[j].gid, NULL, 0)) != ANISTAR_OK) return s;
     }
-    for (size_t k = 0; k < ss->nregrow; k++)
-        if ((s = regrow_star(ss, ss->regrow[k], ss->regrow_box + 6 * k)) != ANISTAR_OK) return s;
-    ss->nregrow = 0;
-    for (size_t k = 0; k < ss->nrebuild; k++)
-        if ((s = compact_star(ss, ss->rebuild[k])) != ANISTAR_OK) return s;
-    ss->nrebuild = 0;
-    return ANISTAR_OK;
+    if ((s = restars(ss, 0)) != ANISTAR_OK) return s;
+    return restars(ss, 1);
 }
 
 /* A simulation on workspace w with env and sc (the caller's or a thread's). design: the

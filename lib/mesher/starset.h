@@ -180,6 +180,7 @@ typedef struct as_starset {
     as_btask *btask;         /* a batch's star updates (as_starset_insert_batch) */
     size_t cap_btask;
     as_bpoint *bpts;         /* the batch's points while their stars are built */
+    int restar_compact;      /* the parallel regrowths (0) or compactions (1) running */
 
     /* statistics */
     uint64_t star_updates, star_rebuilds, zone_regrowths; /* builds, conflict tests: ws */

@@ -9,6 +9,8 @@
 # turn. Prints, per case, the minimum and the median wall time of each build, the speedups
 # of 2 threads over 1 and of the new build on one thread over OLD_ANISTAR, and checks that
 # the 1- and 2-thread outputs are byte-identical. Run it on an otherwise idle machine.
+# OLD_THREADS=N passes --threads N to OLD_ANISTAR (a build that has the option: without
+# it, such a build takes every online core).
 set -eu
 rounds=${1:-5}
 old=${2:-}
@@ -40,7 +42,7 @@ r=0
 while [ "$r" -lt "$rounds" ]; do
     echo "$cases" | while IFS='|' read -r name args; do
         # shellcheck disable=SC2086
-        [ -n "$old" ] && run "$name" old "$old" - $args
+        [ -n "$old" ] && run "$name" old "$old" "${OLD_THREADS:--}" $args
         # shellcheck disable=SC2086
         run "$name" t1 "$new" 1 $args
         # shellcheck disable=SC2086

@@ -343,6 +343,7 @@ typedef struct as_evpre {
     int why;
     anistar_status err;
     double v1, v2;
+    as_ftab_entry *te; /* the facet's table entry (the table does not move while draining) */
 } as_evpre;
 
 static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx) {
@@ -357,6 +358,7 @@ static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx
     const as_rfacet *f = &st->rf[d->i];
     d->v1 = (f->queued & 1) ? 0 : rule1_local(ss, tctx, R->prm, f, &d->why, &d->err);
     d->v2 = (f->queued & 2) ? 0 : as_rule2_violation(ss, R->prm, e->star, f);
+    d->te = as_starset_lookup(ss, as_facet_key(f->g));
     return ANISTAR_OK;
 }
 
@@ -406,7 +408,7 @@ static anistar_status drain(refiner *R) {
                 f->queued |= 2;
             }
         }
-        as_ftab_entry *te = as_starset_lookup(ss, key);
+        as_ftab_entry *te = pre ? R->evpre[k].te : as_starset_lookup(ss, key);
         if (te && te->incpos >= 0 && !te->queued) {
             as_qentry q = {f->r, key, e->star};
             if ((s = as_queue_push(R->ctx, &R->q[2], q)) != ANISTAR_OK) return s;
@@ -1176,7 +1178,9 @@ static anistar_status bpoint_on(refiner *R, int32_t k, int t, anistar_context *t
             return s;
     }
     if ((s = as_starset_metric_in(ss, tctx, J->b.p, &J->b.mf)) != ANISTAR_OK) return s;
-    return as_starset_conflicts_on(ss, t, tctx, J->b.p, &J->b);
+    if ((s = as_starset_conflicts_on(ss, t, tctx, J->b.p, &J->b)) != ANISTAR_OK) return s;
+    /* the feature size the drain after the batch will ask for (a per-site cache) */
+    return as_starset_lfs_point(ss, t, tctx, &J->b);
 }
 
 static anistar_status bpoint_task(void *arg, int32_t k, int t, anistar_context *tctx) {

@@ -1335,6 +1335,13 @@ done:
  * difference with its facets from before. */
 static anistar_status compact_star(as_starset *ss, int32_t v) { return restar(ss, v, NULL, 1); }
 
+/* Whether star v's zone grew when a point entered it (its facets before in old[0..nold)):
+ * zone_grew's box in zb; reads only the star (the threads of an insertion run it). */
+static int entry_grew(const as_starset *ss, int32_t v, const as_rfacet *old, int32_t nold,
+                      double zb[6]) {
+    return zone_grew(ss->stars[v], &ss->mf[v], old, nold, zb, zb + 3);
+}
+
 /* Each thread slot's environment: the star set's (its points may have moved since:
  * grow_points) with the slot's context. */
 static void thread_envs(as_starset *ss) {
@@ -1364,6 +1371,7 @@ static anistar_status insert_task(void *arg, int32_t k, int t, anistar_context *
     pt->thread = t;
     pt->off = A->n;
     pt->nold = sc->nold;
+    pt->grew = entry_grew(ss, v, sc->old, sc->nold, pt->zb);
     A->n += (size_t)sc->nold;
     return ANISTAR_OK;
 }
@@ -1413,10 +1421,11 @@ static anistar_status set_threads(as_starset *ss, int n) {
 }
 
 /* After p entered star v (its facets before in old[0..nold), was_closed: whether it was
- * closed before): the table and the events, and the star's zone regrowth or compaction
- * queued for after p's own star (ss->regrow, ss->rebuild). */
+ * closed before, grew and zb: entry_grew's answer): the table and the events, and the
+ * star's zone regrowth or compaction queued for after p's own star (ss->regrow,
+ * ss->rebuild). */
 static anistar_status after_insert(as_starset *ss, int32_t v, const as_rfacet *old, int32_t nold,
-                                   int was_closed) {
+                                   int was_closed, int grew, const double zb_in[6]) {
     as_star *sv = ss->stars[v];
     anistar_status s;
     ss->star_updates++;
@@ -1427,7 +1436,7 @@ static anistar_status after_insert(as_starset *ss, int32_t v, const as_rfacet *o
      * curved or thin surface a new facet's dual edge can cross S far away, and the
      * sites of its surface ball were never offered to this star. */
     double zb[6];
-    int grew = zone_grew(sv, &ss->mf[v], old, nold, zb, zb + 3);
+    if (grew) memcpy(zb, zb_in, sizeof zb);
     if (!grew && was_closed && !sv->closed) {
         /* design: a closed star that opens (a facet lost) has a zone no longer bounded
          * by surface balls: the union of the circumballs of its tets around v, which
@@ -1533,12 +1542,15 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
         as_star *sv = ss->stars[v];
         const as_rfacet *old;
         int32_t nold;
-        int was_closed;
+        int was_closed, grew;
+        double zb[6];
         if (par) {
             const as_ptask *pt = &ss->ptask[k];
             old = ss->parena[pt->thread].f + pt->off;
             nold = pt->nold;
             was_closed = pt->was_closed;
+            grew = pt->grew;
+            memcpy(zb, pt->zb, sizeof zb);
         } else {
             was_closed = sv->closed;
             sv->hint = ss->ws.hints[k]; /* design: walk from a tet known to conflict with p */
@@ -1547,8 +1559,9 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
                 return s;
             old = ss->sc.old;
             nold = ss->sc.nold;
+            grew = entry_grew(ss, v, old, nold, zb);
         }
-        if ((s = after_insert(ss, v, old, nold, was_closed)) != ANISTAR_OK) return s;
+        if ((s = after_insert(ss, v, old, nold, was_closed, grew, zb)) != ANISTAR_OK) return s;
     }
     /* 2. p's star */
     if ((s = build_star(ss, &ss->ws, &ss->env, &ss->sc, st, p, gid, &ss->mf[gid], nl, 0)) !=
@@ -1581,6 +1594,16 @@ anistar_status as_starset_conflicts_on(as_starset *ss, int t, anistar_context *c
     return ANISTAR_OK;
 }
 
+anistar_status as_starset_lfs_point(as_starset *ss, int t, anistar_context *ctx, as_bpoint *b) {
+    as_simws *w = t < 0 ? &ss->ws : &ss->tws[t];
+    int exact = 0;
+    double lfs;
+    b->lfs = NAN;
+    anistar_status s = as_feature_lfs(ctx, &ss->feat, &b->mf, b->p, 0, &w->ids, &lfs, &exact);
+    if (s == ANISTAR_OK && exact) b->lfs = lfs;
+    return s;
+}
+
 void as_bpoint_free(anistar_context *ctx, as_bpoint *b) {
     as_free(ctx, b->list, b->cap_list * sizeof *b->list);
     as_free(ctx, b->hints, b->cap_hints * sizeof *b->hints);
@@ -1608,6 +1631,7 @@ static anistar_status binsert_task(void *arg, int32_t k, int t, anistar_context 
     pt->thread = t;
     pt->off = A->n;
     pt->nold = sc->nold;
+    pt->grew = entry_grew(ss, bt->v, sc->old, sc->nold, pt->zb);
     A->n += (size_t)sc->nold;
     return ANISTAR_OK;
 }
@@ -1640,6 +1664,7 @@ anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np)
         int32_t gid = ss->n;
         memcpy(ss->xyz + 3 * (size_t)gid, b[j].p, 3 * sizeof(double));
         ss->mf[gid] = b[j].mf;
+        if (!isnan(b[j].lfs)) ss->lfs[gid] = b[j].lfs;
         as_star *st = as_alloc(ss->ctx, sizeof *st);
         if (!st) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
         as_star_init(st, ss->ctx);
@@ -1675,12 +1700,15 @@ anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np)
         as_star *sv = ss->stars[bt->v];
         const as_rfacet *old;
         int32_t nold;
-        int was_closed;
+        int was_closed, grew;
+        double zb[6];
         if (par) {
             const as_ptask *pt = &ss->ptask[k];
             old = ss->parena[pt->thread].f + pt->off;
             nold = pt->nold;
             was_closed = pt->was_closed;
+            grew = pt->grew;
+            memcpy(zb, pt->zb, sizeof zb);
         } else {
             int32_t gid = bt->gid;
             was_closed = sv->closed;
@@ -1690,8 +1718,9 @@ anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np)
                 return s;
             old = ss->sc.old;
             nold = ss->sc.nold;
+            grew = entry_grew(ss, bt->v, old, nold, zb);
         }
-        if ((s = after_insert(ss, bt->v, old, nold, was_closed)) != ANISTAR_OK) return s;
+        if ((s = after_insert(ss, bt->v, old, nold, was_closed, grew, zb)) != ANISTAR_OK) return s;
     }
     /* 2. the points' own stars, each from its seeds and grown from the kd-tree, which
      * holds every point of the batch: a point in conflict with another's star is found

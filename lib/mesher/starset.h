@@ -54,6 +54,8 @@ typedef struct as_ptask {
     int32_t nold;
     int thread;
     int was_closed;
+    int grew;       /* the star's zone grew (zone_grew), in box zb (lo, hi) */
+    double zb[6];
 } as_ptask;
 typedef struct as_parena {
     as_rfacet *f;
@@ -71,6 +73,7 @@ typedef struct as_bpoint {
     as_metric_frame mf;      /* its frame (as_starset_metric_in) */
     int32_t *list, *hints;   /* the stars it conflicts with, a conflicting tet of each */
     size_t nl, cap_list, cap_hints;
+    double lfs;              /* its local feature size (as_starset_lfs_point; NaN: none) */
     int32_t gid;             /* out: its id */
 } as_bpoint;
 /* One star update of a batch: site gid into star v (hint: a tet of v in conflict). */
@@ -258,6 +261,9 @@ anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid
 anistar_status as_starset_conflicts_on(as_starset *ss, int t, anistar_context *ctx,
                                        const double p[3], as_bpoint *b);
 anistar_status as_starset_insert_batch(as_starset *ss, as_bpoint *b, int32_t np);
+/* b->lfs: the local feature size at b->p in b->mf, as as_starset_lfs would cache it for
+ * the site (the batch's insertion caches it), on slot t's workspace (-1: the caller's). */
+anistar_status as_starset_lfs_point(as_starset *ss, int t, anistar_context *ctx, as_bpoint *b);
 void as_bpoint_free(anistar_context *ctx, as_bpoint *b);
 
 /*

@@ -993,6 +993,7 @@ typedef struct sm_state {
     size_t ngval, capgval;
     int frag_candidates; /* some resolved mixed cell has a corner where K > SM_RESOLVED L
                             (sm_areas' fragment cells, only then) */
+    as_pool *pool;       /* threads for the grid values (NULL: none) */
 } sm_state;
 
 static void sm_state_free(sm_state *st) {
@@ -1231,6 +1232,34 @@ static void sm_sphere_point(const as_surface *s, const double p[3], const double
     for (int i = 0; i < 3; i++) x[i] = p[i] + t * d[i];
 }
 
+/* f at the grid vertices of z-slab k (sm_values). */
+static anistar_status sm_values_task(void *arg, int32_t k, int t, anistar_context *ctx) {
+    (void)t;
+    sm_state *st = arg;
+    const as_surface *s = st->s;
+    sm_grid *g = &st->g;
+    const size_t slab = g->nv * g->nv;
+    for (size_t idx = (size_t)k * slab; idx < ((size_t)k + 1) * slab; idx++) {
+        double p[3] = {g->o[0] + g->h * (double)(idx % SM_NV),
+                       g->o[1] + g->h * (double)((idx / SM_NV) % SM_NV),
+                       g->o[2] + g->h * (double)(idx / (SM_NV * SM_NV))};
+        st->uf[idx] = (int32_t)idx;
+        st->gidx[idx] = -1;
+        if (!fs_in_ball(s, p)) {
+            g->ball[idx] = 0;
+            g->sg[idx] = 1;
+            g->f[idx] = 0;
+            continue;
+        }
+        double f = fs_value(s, p);
+        if (!isfinite(f)) return fail_nonfinite(ctx, "f", p);
+        g->ball[idx] = 1;
+        g->sg[idx] = f < 0 ? -1 : 1;
+        g->f[idx] = f;
+    }
+    return ANISTAR_OK;
+}
+
 static anistar_status sm_values(sm_state *st) {
     anistar_context *ctx = st->ctx;
     const as_surface *s = st->s;
@@ -1259,24 +1288,15 @@ static anistar_status sm_values(sm_state *st) {
         if (!st->uf) st->capuf = 0;
         return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory (grid of %zu^3)", g->nv);
     }
-    for (size_t idx = 0; idx < g->count; idx++) {
-        double p[3] = {g->o[0] + g->h * (double)(idx % SM_NV),
-                       g->o[1] + g->h * (double)((idx / SM_NV) % SM_NV),
-                       g->o[2] + g->h * (double)(idx / (SM_NV * SM_NV))};
-        st->uf[idx] = (int32_t)idx;
-        st->gidx[idx] = -1;
-        if (!fs_in_ball(s, p)) {
-            g->ball[idx] = 0;
-            g->sg[idx] = 1;
-            g->f[idx] = 0;
-            continue;
-        }
-        double f = fs_value(s, p);
-        if (!isfinite(f)) return fail_nonfinite(ctx, "f", p);
-        g->ball[idx] = 1;
-        g->sg[idx] = f < 0 ? -1 : 1;
-        g->f[idx] = f;
+    /* design: f at the grid vertices, one task per z-slab (each writes only its slab): the
+     * same values, and the same first non-finite one, for any thread count */
+    anistar_status rs = ANISTAR_OK;
+    if (st->pool) {
+        rs = as_pool_run(st->pool, (int32_t)g->nv, sm_values_task, st);
+    } else {
+        for (size_t k = 0; k < g->nv && !rs; k++) rs = sm_values_task(st, (int32_t)k, 0, ctx);
     }
+    if (rs) return rs;
     for (size_t c = 0; c < g->ncells; c++) g->whead[c] = g->xhead[c] = -1;
     /* the sphere check: f < 0 on the sphere means S is not inside it */
     size_t nv = g->nv, stride[3] = {1, nv, nv * nv};
@@ -2797,6 +2817,7 @@ anistar_status as_sampler_sample(anistar_context *ctx, as_sampler *sp, size_t ma
     if (sp->analysed == 0) {
         sp->st.ctx = ctx;
         sp->st.s = s;
+        sp->st.pool = sp->pool;
         anistar_status rs = sm_analyse(&sp->st, &sp->area);
         if (rs) {
             sp->analysed = -1;

@@ -1012,6 +1012,11 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
     fprintf(f, "  \"topology_below_hmin\": %llu,\n  \"sites_unused\": %zu,\n",
             (unsigned long long)st->topology_below_hmin, st->sites_unused);
     fprintf(f, "  \"stars_delaunay_zone\": %zu,\n", st->stars_delaunay_zone);
+    fprintf(f,
+            "  \"batches\": {\"count\": %llu, \"jobs\": %llu, \"lost\": %llu, "
+            "\"set_aside\": %llu},\n",
+            (unsigned long long)st->batches, (unsigned long long)st->batch_jobs,
+            (unsigned long long)st->batch_jobs_lost, (unsigned long long)st->batch_jobs_set_aside);
     fprintf(f, "  \"pick_valid\": {\"tries\": %llu, \"failures\": %llu},\n",
             (unsigned long long)st->pick_valid_tries,
             (unsigned long long)st->pick_valid_failures);

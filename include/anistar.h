@@ -758,6 +758,14 @@ typedef struct anistar_mesh_stats {
                                      their Voronoi cell away from their disk: specks of S
                                      meshed at hmin); they took their whole Delaunay
                                      region as their conflict zone */
+    /* the batches of refinement points (docs/algorithm.md §11; the same for every thread
+     * count): jobs taken in batches, those that lost a star to an earlier job of their
+     * batch after their point was computed, and those set aside before (sharing a star or
+     * a vertex with an earlier job); both go back to their queue */
+    uint64_t batches;
+    uint64_t batch_jobs;
+    uint64_t batch_jobs_lost;
+    uint64_t batch_jobs_set_aside;
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);

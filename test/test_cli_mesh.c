@@ -91,6 +91,16 @@ static void test_mesh_sphere(void **state) {
     const char *pv = tu_json_value(js, "pick_valid");
     assert_non_null(pv);
     assert_true(tu_json_number(pv, "tries") >= tu_json_number(pv, "failures"));
+    /* the rules' points came in batches: every insertion by rules 1-3 is a job of a batch
+     * that kept its stars */
+    const char *ba = tu_json_value(js, "batches");
+    assert_non_null(ba);
+    double bjobs = tu_json_number(ba, "jobs"), blost = tu_json_number(ba, "lost");
+    assert_true(tu_json_number(ba, "count") >= 1 && bjobs >= tu_json_number(ba, "count"));
+    assert_true(blost >= 0 && tu_json_number(ba, "set_aside") >= 0);
+    assert_true(tu_json_number(ins_o, "rule1") + tu_json_number(ins_o, "rule2") +
+                    tu_json_number(ins_o, "rule3") <=
+                bjobs - blost);
     /* the bounds hold on a finished mesh (euclidean: one metric, no distortion) */
     double rho = tu_json_number(js, "rho_max"), rmax = tu_json_number(js, "r_max");
     assert_true(rho > 0.5 && rho <= 3.0 + 1e-9); /* rho0 defaults to 3 */

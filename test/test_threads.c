@@ -91,7 +91,10 @@ static void same_counts(const char *name, int t, const anistar_mesh_stats *a,
         a->insertions_initial != b->insertions_initial || a->complete != b->complete ||
         a->poles != b->poles || a->pick_valid_tries != b->pick_valid_tries ||
         a->pick_valid_failures != b->pick_valid_failures ||
-        memcmp(a->histogram, b->histogram, sizeof a->histogram) || a->rho_max != b->rho_max)
+        memcmp(a->histogram, b->histogram, sizeof a->histogram) || a->rho_max != b->rho_max ||
+        a->batches != b->batches || a->batch_jobs != b->batch_jobs ||
+        a->batch_jobs_lost != b->batch_jobs_lost ||
+        a->batch_jobs_set_aside != b->batch_jobs_set_aside)
         fail_msg("%s, %d threads: the run's counts differ from 1 thread's (rule-1 insertions "
                  "%llu / %llu)",
                  name, t, (unsigned long long)b->insertions_rule[0],

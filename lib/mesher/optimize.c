@@ -327,6 +327,10 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
     T->topology_below_hmin = S->topology_below_hmin;
     T->sites_unused = S->sites_unused;
     T->stars_delaunay_zone = S->stars_delaunay_zone;
+    T->batches = S->batches;
+    T->batch_jobs = S->batch_jobs;
+    T->batch_jobs_lost = S->batch_jobs_lost;
+    T->batch_jobs_set_aside = S->batch_jobs_set_aside;
     T->stall_max = S->stall_max;
     T->components_below_resolution = S->components_below_resolution;
     T->estimate_vertices = S->estimate_vertices;

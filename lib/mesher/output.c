@@ -204,6 +204,10 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_hmax = cnt->cause[AS_CAUSE_HMAX];
     S->topology_below_hmin = cnt->topo_below_hmin;
     S->stars_delaunay_zone = (size_t)cnt->zones_opened;
+    S->batches = cnt->batches;
+    S->batch_jobs = cnt->batch_jobs;
+    S->batch_jobs_lost = cnt->batch_lost;
+    S->batch_jobs_set_aside = cnt->batch_set_aside;
     S->sites_unused = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) S->sites_unused += ss->stars[v]->nrf == 0;
     S->stall_max = cnt->stall_max;

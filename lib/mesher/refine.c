@@ -1193,6 +1193,7 @@ static anistar_status batch_take(refiner *R, int k) {
                 as_grow(R->ctx, (void **)&R->defer, &R->cap_defer, ndef + 1, sizeof *R->defer))
                 return as_fail(R->ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
             R->defer[ndef++] = *J;
+            R->cnt.batch_set_aside++;
             continue;
         }
         R->resv[J->v] = ep;
@@ -1267,6 +1268,8 @@ static anistar_status batch_run(refiner *R, int k, int64_t maxv) {
     as_starset *ss = R->ss;
     anistar_status s;
     const int32_t nj = R->njobs;
+    R->cnt.batches++;
+    R->cnt.batch_jobs += (uint64_t)nj;
     if (ss->pool && (s = as_starset_simulate_prepare(ss)) != ANISTAR_OK) return s;
     /* 1. violations (rules 1-2) */
     if (k < 2) {
@@ -1313,6 +1316,7 @@ static anistar_status batch_run(refiner *R, int k, int64_t maxv) {
         int free_ = R->resv[J->v] != ep && nw < room;
         for (size_t i = 0; i < J->b.nl && free_; i++) free_ = R->resv[J->b.list[i]] != ep;
         if (!free_) {
+            R->cnt.batch_lost++;
             if ((s = batch_putback(R, J)) != ANISTAR_OK) return s;
             J->live = 0;
             continue;
@@ -1640,19 +1644,22 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             R.cnt.stop_reason = ANISTAR_STOP_REQUESTED;
             break;
         }
+        /* the open stars that closed since they were queued are dropped (as next_job
+         * does), so that a topology job is left only when one is due */
+        while (ss->nopen > 0 && ss->stars[ss->open[ss->nopen - 1]]->closed)
+            ss->stars[ss->open[--ss->nopen]]->topo_queued = 0;
         if (prm->batch > 1 && !prm->part && ss->nopen == 0) {
             /* batches (batch_step) for the rules' jobs; topology jobs and the rest one at
              * a time below */
-            int k = 0;
-            while (k < 3 && R.q[k].n == 0) k++;
-            if (k < 3) {
-                if ((s = batch_take(&R, k)) != ANISTAR_OK) break;
-                if (R.njobs > 0) {
-                    if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) break;
-                    if ((s = batch_run(&R, k, maxv)) != ANISTAR_OK) break;
-                    continue;
-                }
+            int ran = 0, stop = 0;
+            for (int k = 0; k < 3 && !ran && !stop && s == ANISTAR_OK; k++) {
+                if (R.q[k].n == 0 || (s = batch_take(&R, k)) != ANISTAR_OK || R.njobs == 0)
+                    continue; /* only stale entries: the next queue */
+                if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) stop = 1;
+                else if ((s = batch_run(&R, k, maxv)) == ANISTAR_OK) ran = 1;
             }
+            if (s != ANISTAR_OK || stop) break;
+            if (ran) continue;
         }
         int rule = JOB_NONE, cause = AS_CAUSE_SIZE;
         int32_t v = -1;

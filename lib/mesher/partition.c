@@ -493,7 +493,7 @@ static int32_t id_at(const as_starset *ss, const double p[3]) {
 }
 
 typedef struct pt_tri {
-    int32_t g[3];
+    as_gid g[3];
 } pt_tri;
 
 static int cmp_tri(const void *a, const void *b) {
@@ -501,16 +501,6 @@ static int cmp_tri(const void *a, const void *b) {
     for (int k = 0; k < 3; k++)
         if (x->g[k] != y->g[k]) return x->g[k] < y->g[k] ? -1 : 1;
     return 0;
-}
-
-static void sort3(int32_t g[3]) {
-    for (int a = 0; a < 3; a++)
-        for (int b = a + 1; b < 3; b++)
-            if (g[b] < g[a]) {
-                int32_t t = g[a];
-                g[a] = g[b];
-                g[b] = t;
-            }
 }
 
 /* Hook of the union's star set: build the stars of the seeds, refine nothing. */
@@ -555,7 +545,7 @@ static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_st
                     t.g[c] = id_at(U, ss->xyz + 3 * (size_t)st->rf[f].g[c]);
                     if (t.g[c] < 0) missing = 1;
                 }
-                sort3(t.g);
+                as_sort_gid3(t.g);
                 a[na++] = t;
                 all[n++] = t;
             }
@@ -567,8 +557,8 @@ static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_st
                 break;
             }
             for (size_t f = 0; f < na; f++) {
-                for (int c = 0; c < 3; c++) b[f].g[c] = (int32_t)su->rf[f].g[c];
-                sort3(b[f].g);
+                for (int c = 0; c < 3; c++) b[f].g[c] = su->rf[f].g[c];
+                as_sort_gid3(b[f].g);
             }
             qsort(a, na, sizeof *a, cmp_tri);
             qsort(b, na, sizeof *b, cmp_tri);

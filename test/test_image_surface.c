@@ -327,13 +327,19 @@ static void test_lattice_and_blend(void **state) {
     anistar_context_free(ctx);
 }
 
-static void test_skull(void **state) {
-    (void)state;
-    anistar_context *ctx = anistar_context_new(NULL);
+/* The skull of test/data, its surface at the isovalue its file name gives. */
+static as_surface *skull_surface(anistar_context *ctx) {
     char path[512];
     data_path(path, sizeof path, "skull_2.9.inr");
     as_surface *s;
     assert_int_equal(as_image_surface_read(ctx, path, 2.9, 1, &s), ANISTAR_OK);
+    return s;
+}
+
+static void test_skull(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s = skull_surface(ctx);
     tu_rng r = {5};
     int met = check_closed(ctx, s, 1.0, &r, 40);
     assert_true(met >= 4);
@@ -364,10 +370,7 @@ static void test_skull(void **state) {
 static void test_crossing_order(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
-    char path[512];
-    data_path(path, sizeof path, "skull_2.9.inr");
-    as_surface *s;
-    assert_int_equal(as_image_surface_read(ctx, path, 2.9, 1, &s), ANISTAR_OK);
+    as_surface *s = skull_surface(ctx);
     as_point_sample smp;
     assert_int_equal(as_surface_sample(ctx, s, 64, &smp), ANISTAR_OK);
     tu_rng r = {13};

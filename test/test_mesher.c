@@ -30,18 +30,8 @@ typedef struct mcase {
     long long chi;
 } mcase;
 
-static void sort3(as_gid g[3]) {
-    for (int a = 0; a < 3; a++)
-        for (int b = a + 1; b < 3; b++)
-            if (g[b] < g[a]) {
-                as_gid t = g[a];
-                g[a] = g[b];
-                g[b] = t;
-            }
-}
-
-/* Run one case with batches of `batch` points and check every guarantee; the vertex
- * count, the mean approximation error and the batch counts in *out (may be NULL). */
+/* Run one case with batches of `batch` points (seed) and check every guarantee; its
+ * statistics in *out (may be NULL). */
 static void run_case_batch(const mcase *c, int32_t batch, uint64_t seed, anistar_mesh_stats *out) {
     anistar_context *ctx = anistar_context_new(NULL);
     as_surface *s;
@@ -493,7 +483,7 @@ static void test_max_vertices_incomplete(void **state) {
                 if (memcmp(ss->xyz + 3 * (size_t)q, x, 3 * sizeof *x) == 0) g[k] = q;
             assert_true(g[k] >= 0);
         }
-        sort3(g);
+        as_sort_gid3(g);
         as_ftab_entry *e = as_starset_lookup(ss, as_facet_key(g));
         assert_non_null(e);
         assert_int_equal(e->mask, 7);

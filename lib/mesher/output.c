@@ -247,16 +247,6 @@ static int tri_pos(const int32_t *tri, int32_t t, int32_t a) {
     return -1;
 }
 
-static void sort_g3(as_gid g[3]) {
-    for (int a = 0; a < 2; a++)
-        for (int b = a + 1; b < 3; b++)
-            if (g[b] < g[a]) {
-                as_gid t = g[a];
-                g[a] = g[b];
-                g[b] = t;
-            }
-}
-
 /* Append a refinement point x (with the Euclidean size r of what it refines) to ss->fix. */
 static anistar_status add_fix(anistar_context *ctx, as_starset *ss, const double x[3], double r) {
     if (ss->nfix == ss->cap_fix &&
@@ -691,7 +681,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     if (tri_pos(tm->tri, u, b) < 0) continue;
                     as_gid g[3];
                     for (int i = 0; i < 3; i++) g[i] = m->gid[tm->tri[3 * (size_t)u + i]];
-                    sort_g3(g);
+                    as_sort_gid3(g);
                     const as_star *sv = ss->stars[g[0]];
                     int32_t fi = as_star_find(sv, g);
                     if (fi < 0) continue;

@@ -493,7 +493,7 @@ static int32_t id_at(const as_starset *ss, const double p[3]) {
 }
 
 typedef struct pt_tri {
-    int32_t g[3];
+    as_gid g[3];
 } pt_tri;
 
 static int cmp_tri(const void *a, const void *b) {
@@ -501,16 +501,6 @@ static int cmp_tri(const void *a, const void *b) {
     for (int k = 0; k < 3; k++)
         if (x->g[k] != y->g[k]) return x->g[k] < y->g[k] ? -1 : 1;
     return 0;
-}
-
-static void sort3(int32_t g[3]) {
-    for (int a = 0; a < 3; a++)
-        for (int b = a + 1; b < 3; b++)
-            if (g[b] < g[a]) {
-                int32_t t = g[a];
-                g[a] = g[b];
-                g[b] = t;
-            }
 }
 
 /* Hook of the union's star set: build the stars of the seeds, refine nothing. */
@@ -530,18 +520,29 @@ static anistar_status none_round(void *user, as_starset *ss, const double **pts,
     return ANISTAR_OK;
 }
 
-/* Compare the parts' owned stars with the union's star set U; count the union's facets. */
+/*
+ * Compare the parts' owned stars with the union's star set U; count the union's facets.
+ *   design: per part, map each of its ids to U's id at the same point (-1: none), one kd
+ *   query per point; then translate every owned star's facets through the map, sort them,
+ *   and compare them with the star of U at the same point.
+ */
 static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_starset *U,
                                     as_partition_result *res) {
-    size_t cap = 0, n = 0, cap_a = 0, cap_b = 0;
+    size_t cap = 0, n = 0, cap_a = 0, cap_b = 0, cap_map = 0;
     pt_tri *all = NULL, *a = NULL, *b = NULL;
+    int32_t *map = NULL; /* a part's id -> U's id, or -1 */
     anistar_status s = ANISTAR_OK;
     for (int i = 0; i < S->k && s == ANISTAR_OK; i++) {
         const as_starset *ss = S->parts[i].ss;
+        if (as_grow(ctx, (void **)&map, &cap_map, (size_t)ss->n + 1, sizeof *map)) {
+            s = as_fail(ctx, ANISTAR_ENOMEM, "partition: out of memory (stitch)");
+            break;
+        }
+        for (int32_t g = 0; g < ss->n; g++) map[g] = id_at(U, ss->xyz + 3 * (size_t)g);
         for (int32_t v = ss->first_site; v < ss->n && s == ANISTAR_OK; v++) {
             const as_star *st = ss->stars[v];
             if (!st || pt_owner(&S->sp, ss->xyz + 3 * (size_t)v) != i) continue;
-            int32_t gv = id_at(U, ss->xyz + 3 * (size_t)v);
+            int32_t gv = map[v];
             size_t na = 0;
             if (as_grow(ctx, (void **)&a, &cap_a, (size_t)st->nrf + 1, sizeof *a) ||
                 as_grow(ctx, (void **)&all, &cap, n + (size_t)st->nrf + 1, sizeof *all)) {
@@ -552,10 +553,10 @@ static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_st
             for (int32_t f = 0; f < st->nrf; f++) {
                 pt_tri t;
                 for (int c = 0; c < 3; c++) {
-                    t.g[c] = id_at(U, ss->xyz + 3 * (size_t)st->rf[f].g[c]);
+                    t.g[c] = map[st->rf[f].g[c]];
                     if (t.g[c] < 0) missing = 1;
                 }
-                sort3(t.g);
+                as_sort_gid3(t.g);
                 a[na++] = t;
                 all[n++] = t;
             }
@@ -567,8 +568,8 @@ static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_st
                 break;
             }
             for (size_t f = 0; f < na; f++) {
-                for (int c = 0; c < 3; c++) b[f].g[c] = (int32_t)su->rf[f].g[c];
-                sort3(b[f].g);
+                for (int c = 0; c < 3; c++) b[f].g[c] = su->rf[f].g[c];
+                as_sort_gid3(b[f].g);
             }
             qsort(a, na, sizeof *a, cmp_tri);
             qsort(b, na, sizeof *b, cmp_tri);
@@ -590,6 +591,7 @@ static anistar_status compare_stars(anistar_context *ctx, pt_sim *S, const as_st
     as_free(ctx, all, cap * sizeof *all);
     as_free(ctx, a, cap_a * sizeof *a);
     as_free(ctx, b, cap_b * sizeof *b);
+    as_free(ctx, map, cap_map * sizeof *map);
     return s;
 }
 

@@ -5,6 +5,7 @@
 #include "mesher/star.h"
 
 #include "geom/predicates.h"
+#include "mesher/starset.h" /* as_sort_gid3 */
 
 #include <math.h>
 #include <string.h>
@@ -271,13 +272,6 @@ static int cmp_g(const as_gid a[3], const as_gid b[3]) {
     return 0;
 }
 
-static void sort3(as_gid g[3]) {
-    as_gid t;
-    if (g[0] > g[1]) { t = g[0]; g[0] = g[1]; g[1] = t; }
-    if (g[1] > g[2]) { t = g[1]; g[1] = g[2]; g[2] = t; }
-    if (g[0] > g[1]) { t = g[0]; g[0] = g[1]; g[1] = t; }
-}
-
 int32_t as_star_find(const as_star *st, const as_gid g[3]) {
     int32_t lo = 0, hi = st->nrf;
     while (lo < hi) {
@@ -527,7 +521,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
             g[n] = (as_gid)d->gid[lv[n]];
             n++;
         }
-        sort3(g);
+        as_sort_gid3(g);
         if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
         as_rfacet *f = &st->rf[st->nrf++];
         int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
@@ -1251,7 +1245,7 @@ anistar_status as_star_facet_extent(const as_star_env *env, as_star *st, const a
         as_gid h[3];
         for (int j = 0; j < 4; j++)
             if (j != (face & 3)) h[n++] = (as_gid)d->gid[as_del3_tet_vertex(d, t1, j)];
-        sort3(h);
+        as_sort_gid3(h);
         if (h[0] != g[0] || h[1] != g[1] || h[2] != g[2]) continue;
         *in_dt = 1;
         int32_t t[2] = {t1, as_del3_mirror(d, face) >> 2};

@@ -189,6 +189,16 @@ typedef struct as_starset {
     uint64_t star_updates, star_rebuilds, zone_regrowths; /* builds, conflict tests: ws */
 } as_starset;
 
+/* Sort three global ids ascending, in place (a facet key's order). */
+static inline void as_sort_gid3(as_gid g[3]) {
+    for (int a = 0; a < 2; a++)
+        for (int b = a + 1; b < 3; b++)
+            if (g[b] < g[a]) {
+                as_gid t = g[a];
+                g[a] = g[b];
+                g[b] = t;
+            }
+}
 /* The key of a sorted triple. */
 static inline as_fkey as_facet_key(const as_gid g[3]) {
     as_fkey k = {{g[0], g[1], g[2]}};

@@ -222,7 +222,8 @@ anistar_status as_feature_build(anistar_context *ctx, const as_surface *surf, as
     if (pool) {
         s = as_pool_run(pool, (int32_t)smp.n, fball_task, &B);
     } else {
-        for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) s = fball_task(&B, (int32_t)i, 0, ctx);
+        for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++)
+            s = fball_task(&B, (int32_t)i, 0, ctx);
     }
     for (size_t i = 0; i < 2 * smp.n && s == ANISTAR_OK; i++)
         if (isfinite(ball[i].rho)) s = add_point(ctx, fe, ball[i].c, ball[i].rho);

@@ -32,6 +32,89 @@ void as_mesh_free(anistar_mesh *m) {
  *     the approximation error (DESIGN.md 4.8): distance to S of 4 barycentric samples per
  *     facet (projected with the oracle), mean weighted by area and max.
  */
+/* What the output needs of one facet, computed on the threads (ofacet_task). */
+typedef struct as_ofacet {
+    const as_rfacet *f; /* in the star of its lowest vertex */
+    int flip;           /* its vertex order turned to face along S's normal */
+    double rho[3];      /* radius-edge ratio in each vertex metric */
+    double r[3];        /* its surface radius in each vertex's star (-inf: not there) */
+    double area, esum, emax; /* approximation samples: area, sum and largest distance */
+    int ns;             /* samples projected */
+    double g;           /* the largest distortion between its vertices' metrics */
+} as_ofacet;
+
+typedef struct as_ofacets {
+    const as_starset *ss;
+    as_ofacet *of;
+    size_t n;
+} as_ofacets;
+
+/* Facets per task of ofacet_task. */
+#define AS_OUTPUT_CHUNK 64
+
+static anistar_status ofacet_one(const as_starset *ss, anistar_context *ctx, as_ofacet *o) {
+    const as_rfacet *f = o->f;
+    const double *a = ss->xyz + 3 * (size_t)f->g[0], *b = ss->xyz + 3 * (size_t)f->g[1],
+                 *c = ss->xyz + 3 * (size_t)f->g[2];
+    double nrm[3];
+    int sing = 0;
+    anistar_status s = as_surface_normal_at(ctx, ss->surf, f->c, nrm, &sing);
+    if (s != ANISTAR_OK) return s;
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                   u[0] * w[1] - u[1] * w[0]};
+    o->flip = (x[0] * nrm[0] + x[1] * nrm[1]) + x[2] * nrm[2] < 0;
+    for (int j = 0; j < 3; j++) {
+        int32_t w3 = f->g[j];
+        o->rho[j] = as_radius_edge(&ss->mf[w3], a, b, c, NULL);
+        const as_star *sw = ss->stars[w3];
+        int32_t idx = as_star_find(sw, f->g);
+        o->r[j] = idx >= 0 ? sw->rf[idx].r : -INFINITY;
+    }
+    /* approximation error: 4 fixed barycentric samples projected on S, weighted by the
+     * triangle's area (the mean over area-uniform samples) */
+    static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                    {2.0 / 3, 1.0 / 6, 1.0 / 6},
+                                    {1.0 / 6, 2.0 / 3, 1.0 / 6},
+                                    {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+    o->area = 0.5 * sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]);
+    o->esum = 0;
+    o->emax = 0;
+    o->ns = 0;
+    for (int q = 0; q < 4; q++) {
+        double p[3], pr[3];
+        for (int k = 0; k < 3; k++) p[k] = (bw[q][0] * a[k] + bw[q][1] * b[k]) + bw[q][2] * c[k];
+        s = as_surface_project(ctx, ss->surf, p, pr);
+        if (s == ANISTAR_ENOSURFACE) continue; /* no projection found: skipped */
+        if (s != ANISTAR_OK) return s;
+        double d[3] = {pr[0] - p[0], pr[1] - p[1], pr[2] - p[2]};
+        double e = sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]);
+        if (e > o->emax) o->emax = e;
+        o->esum += e;
+        o->ns++;
+    }
+    double g01 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[1]]);
+    double g02 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[2]]);
+    double g12 = as_metric_distortion(&ss->mf[f->g[1]], &ss->mf[f->g[2]]);
+    o->g = g01 > g02 ? g01 : g02;
+    if (g12 > o->g) o->g = g12;
+    return ANISTAR_OK;
+}
+
+/* The facets of chunk k (AS_OUTPUT_CHUNK each), in order: the first error stops it. */
+static anistar_status ofacet_task(void *arg, int32_t k, int t, anistar_context *ctx) {
+    (void)t;
+    const as_ofacets *O = arg;
+    size_t lo = (size_t)k * AS_OUTPUT_CHUNK, hi = lo + AS_OUTPUT_CHUNK;
+    if (hi > O->n) hi = O->n;
+    for (size_t i = lo; i < hi; i++) {
+        anistar_status s = ofacet_one(O->ss, ctx, &O->of[i]);
+        if (s != ANISTAR_OK) return s;
+    }
+    return ANISTAR_OK;
+}
+
 anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                                 const as_mesher_counters *cnt, int complete, anistar_mesh **out) {
     anistar_context *ctx = ss->ctx;
@@ -49,7 +132,10 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (output)");
     }
     for (int32_t i = 0; i < ss->n; i++) map[i] = -1;
-    /* pass 1: mark used vertices */
+    /* pass 1: the output facets (in the order of their lowest vertex's star), and the
+     * used vertices */
+    as_ofacet *of = NULL;
+    size_t nof = 0, cap_of = 0;
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         const as_star *st = ss->stars[v];
         for (int32_t k = 0; k < st->nrf; k++) {
@@ -58,6 +144,12 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
             as_ftab_entry *e = as_starset_lookup(ss, as_facet_key(f->g));
             if (!e || !as_starset_consistent(ss, e->key, e->mask)) continue;
             for (int j = 0; j < 3; j++) map[f->g[j]] = 0;
+            if (nof == cap_of && as_grow(ctx, (void **)&of, &cap_of, nof + 1, sizeof *of)) {
+                s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (output)");
+                goto fail;
+            }
+            of[nof].f = f;
+            nof++;
         }
     }
     size_t nv = 0;
@@ -82,80 +174,50 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
 
     S->histogram_width = 0.25;
     double rho2_sum = 0, err_sum = 0, area_sum = 0;
-    for (int32_t v = ss->first_site; v < ss->n; v++) {
-        const as_star *st = ss->stars[v];
-        for (int32_t k = 0; k < st->nrf; k++) {
-            const as_rfacet *f = &st->rf[k];
-            if (f->g[0] != v) continue;
-            as_ftab_entry *e = as_starset_lookup(ss, as_facet_key(f->g));
-            if (!e || !as_starset_consistent(ss, e->key, e->mask)) continue;
-            const double *a = ss->xyz + 3 * (size_t)f->g[0], *b = ss->xyz + 3 * (size_t)f->g[1],
-                         *c = ss->xyz + 3 * (size_t)f->g[2];
-            double nrm[3];
-            int sing = 0;
-            if ((s = as_surface_normal_at(ctx, ss->surf, f->c, nrm, &sing)) != ANISTAR_OK) goto fail;
-            double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-            double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-            double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
-                           u[0] * w[1] - u[1] * w[0]};
-            int flip = (x[0] * nrm[0] + x[1] * nrm[1]) + x[2] * nrm[2] < 0;
-            int32_t i0 = map[f->g[0]], i1 = map[f->g[1]], i2 = map[f->g[2]];
-            if ((s = as_trimesh_add_triangle(ctx, &m->tm, i0, flip ? i2 : i1, flip ? i1 : i2)) !=
-                ANISTAR_OK)
-                goto fail;
-            /* statistics in the three vertex metrics; a facet below hmin that exceeds
-             * r0, rho0 or gamma0 is counted (the bound that held it) */
-            int beyond = 0;
-            for (int j = 0; j < 3; j++) {
-                int32_t w3 = f->g[j];
-                const as_metric_frame *mf = &ss->mf[w3];
-                double rho = as_radius_edge(mf, a, b, c, NULL);
-                if (rho > S->rho_max) S->rho_max = rho;
-                double r2 = rho * rho / S->histogram_width;
-                size_t bin = r2 < ANISTAR_HISTOGRAM_BINS - 1 ? (size_t)r2 : ANISTAR_HISTOGRAM_BINS - 1;
-                S->histogram[bin]++;
-                rho2_sum += rho * rho;
-                const as_star *sw = ss->stars[w3];
-                int32_t idx = as_star_find(sw, f->g);
-                if (idx >= 0 && sw->rf[idx].r > S->r_max) S->r_max = sw->rf[idx].r;
-                if (rho > prm->rho0 || (idx >= 0 && sw->rf[idx].r >= prm->r0)) beyond = 1;
-            }
-            /* approximation error: 4 fixed barycentric samples projected on S, weighted by
-             * the triangle's area (the mean over area-uniform samples) */
-            {
-                static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
-                                                {2.0 / 3, 1.0 / 6, 1.0 / 6},
-                                                {1.0 / 6, 2.0 / 3, 1.0 / 6},
-                                                {1.0 / 6, 1.0 / 6, 2.0 / 3}};
-                double area = 0.5 * sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]), esum = 0;
-                int ns = 0;
-                for (int q = 0; q < 4; q++) {
-                    double p[3], pr[3];
-                    for (int k = 0; k < 3; k++)
-                        p[k] = (bw[q][0] * a[k] + bw[q][1] * b[k]) + bw[q][2] * c[k];
-                    s = as_surface_project(ctx, ss->surf, p, pr);
-                    if (s == ANISTAR_ENOSURFACE) continue; /* no projection found: skipped */
-                    if (s != ANISTAR_OK) goto fail;
-                    double d[3] = {pr[0] - p[0], pr[1] - p[1], pr[2] - p[2]};
-                    double e = sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]);
-                    if (e > S->approx_error_max) S->approx_error_max = e;
-                    esum += e;
-                    ns++;
-                }
-                if (ns) {
-                    err_sum += area * esum / ns;
-                    area_sum += area;
-                }
-            }
-            double g01 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[1]]);
-            double g02 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[2]]);
-            double g12 = as_metric_distortion(&ss->mf[f->g[1]], &ss->mf[f->g[2]]);
-            double g = g01 > g02 ? g01 : g02;
-            if (g12 > g) g = g12;
-            if (g > S->gamma_max) S->gamma_max = g;
-            if (g >= prm->gamma0) beyond = 1;
-            if (beyond && as_facet_below_hmin(ss, f)) S->facets_below_hmin++;
+    /* design: each facet's normal, shape and approximation samples on the threads (they
+     * read the stars, the points and the surface), then the triangles and the sums in
+     * the facets' order: the same mesh and the same statistics, bit for bit, for any
+     * thread count */
+    {
+        as_ofacets O = {ss, of, nof};
+        int32_t nchunks = (int32_t)((nof + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK);
+        if (ss->pool && nchunks >= 2) {
+            s = as_pool_run(ss->pool, nchunks, ofacet_task, &O);
+        } else {
+            s = ANISTAR_OK;
+            for (int32_t c = 0; c < nchunks && s == ANISTAR_OK; c++)
+                s = ofacet_task(&O, c, 0, ctx);
         }
+        if (s != ANISTAR_OK) goto fail;
+    }
+    for (size_t i = 0; i < nof; i++) {
+        const as_ofacet *o = &of[i];
+        const as_rfacet *f = o->f;
+        int32_t i0 = map[f->g[0]], i1 = map[f->g[1]], i2 = map[f->g[2]];
+        if ((s = as_trimesh_add_triangle(ctx, &m->tm, i0, o->flip ? i2 : i1,
+                                         o->flip ? i1 : i2)) != ANISTAR_OK)
+            goto fail;
+        /* statistics in the three vertex metrics; a facet below hmin that exceeds r0,
+         * rho0 or gamma0 is counted (the bound that held it) */
+        int beyond = 0;
+        for (int j = 0; j < 3; j++) {
+            double rho = o->rho[j];
+            if (rho > S->rho_max) S->rho_max = rho;
+            double r2 = rho * rho / S->histogram_width;
+            size_t bin = r2 < ANISTAR_HISTOGRAM_BINS - 1 ? (size_t)r2 : ANISTAR_HISTOGRAM_BINS - 1;
+            S->histogram[bin]++;
+            rho2_sum += rho * rho;
+            if (o->r[j] > S->r_max) S->r_max = o->r[j];
+            if (rho > prm->rho0 || o->r[j] >= prm->r0) beyond = 1;
+        }
+        if (o->emax > S->approx_error_max) S->approx_error_max = o->emax;
+        if (o->ns) {
+            err_sum += o->area * o->esum / o->ns;
+            area_sum += o->area;
+        }
+        if (o->g > S->gamma_max) S->gamma_max = o->g;
+        if (o->g >= prm->gamma0) beyond = 1;
+        if (beyond && as_facet_below_hmin(ss, f)) S->facets_below_hmin++;
     }
     /* per triangle: the largest radius-edge ratio over its three vertex metrics (the cell
      * field "radius_edge" of the writers) */
@@ -221,10 +283,12 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->seconds_refine = cnt->t_refine;
     S->seconds_total = cnt->t_total;
     (void)prm;
+    as_free(ctx, of, cap_of * sizeof *of);
     as_free(ctx, map, (size_t)ss->n * sizeof *map);
     *out = m;
     return ANISTAR_OK;
 fail:
+    as_free(ctx, of, cap_of * sizeof *of);
     as_free(ctx, map, (size_t)ss->n * sizeof *map);
     as_mesh_free(m);
     return s;

@@ -1248,8 +1248,9 @@ static anistar_status bpoint_task(void *arg, int32_t k, int t, anistar_context *
 
 /*
  * One batch of refinement points (issue 15, docs/algorithm.md §11): the jobs batch_take
- * took from queue k (the first of rules 1, 2, 3 that has one). design: deterministic reservations (Blelloch,
- * Fineman, Gibbons, Shun, PPoPP 2012), with the jobs' queue order as their priority:
+ * took from queue k (the first of rules 1, 2, 3 that has one). design: deterministic
+ * reservations (Blelloch, Fineman, Gibbons, Shun, PPoPP 2012), with the jobs' queue order
+ * as their priority:
  *  1. in parallel, each job's violation (rules 1-2, without the feature-size part, which
  *     fills a cache: then in order), its point (the facet's surface center for rule 1,
  *     Pick_valid with the job's own random state for rules 2-3), the point's frame and the

@@ -155,10 +155,11 @@ sanitize: check-deps
 
 # ThreadSanitizer on the threaded paths (issue 15): the thread-count test (three surfaces
 # on 1, 2, 3 and 8 threads, two contexts at once), the partition simulation (its parts are
-# threads meeting at barriers) and the tool's suites (the CLI runs on every online core).
-# About 10 minutes on 2 cores.
+# threads meeting at barriers), the tool's suites (the CLI runs on every online core) and
+# the out-of-memory sweep (a user allocator called from the pool's threads, every error
+# path of a batch). About 12 minutes on 2 cores.
 TSAN_FLAGS := -fsanitize=thread -fno-omit-frame-pointer
-TSAN_TESTS := test_threads test_partition test_cli_mesh test_cli
+TSAN_TESTS := test_threads test_partition test_cli_mesh test_cli test_oom
 tsan: check-deps
 	@$(MAKE) --no-print-directory BUILD=build/tsan CFLAGS="-O2 -g" \
 	    VARIANT_CFLAGS="$(TSAN_FLAGS)" VARIANT_LDFLAGS="$(TSAN_FLAGS)" all \

@@ -1351,44 +1351,6 @@ static void thread_envs(as_starset *ss) {
     }
 }
 
-/* One task of a parallel insertion of site ss->pgid (see as_starset_insert): insert it
- * into star list[k]. */
-static anistar_status insert_task(void *arg, int32_t k, int t, anistar_context *tctx) {
-    as_starset *ss = arg;
-    int32_t v = ss->ws.list[k];
-    as_star *sv = ss->stars[v];
-    as_star_scratch *sc = &ss->tsc[t];
-    as_ptask *pt = &ss->ptask[k];
-    int32_t gid = ss->pgid;
-    pt->was_closed = sv->closed;
-    sv->hint = ss->ws.hints[k]; /* design: walk from a tet known to conflict with p */
-    anistar_status s = as_star_insert(&ss->tenv[t], sv, &ss->mf[v], &gid, 1, sc, NULL);
-    if (s != ANISTAR_OK) return s;
-    as_parena *A = &ss->parena[t];
-    if (as_grow(tctx, (void **)&A->f, &A->cap, A->n + (size_t)sc->nold, sizeof *A->f))
-        return as_fail(tctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
-    if (sc->nold) memcpy(A->f + A->n, sc->old, (size_t)sc->nold * sizeof *A->f);
-    pt->thread = t;
-    pt->off = A->n;
-    pt->nold = sc->nold;
-    pt->grew = entry_grew(ss, v, sc->old, sc->nold, pt->zb);
-    A->n += (size_t)sc->nold;
-    return ANISTAR_OK;
-}
-
-/* Insert site gid into the stars list[0..nl) on the pool (their facets before, in
- * ss->ptask). */
-static anistar_status insert_parallel(as_starset *ss, int32_t gid, size_t nl) {
-    if (nl > ss->cap_ptask) {
-        if (as_grow(ss->ctx, (void **)&ss->ptask, &ss->cap_ptask, nl, sizeof *ss->ptask))
-            return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (parallel insertion)");
-    }
-    thread_envs(ss);
-    for (int t = 0; t < ss->nthreads; t++) ss->parena[t].n = 0;
-    ss->pgid = gid;
-    return as_pool_run(ss->pool, (int32_t)nl, insert_task, ss);
-}
-
 static anistar_status set_threads(as_starset *ss, int n) {
     if (n < 1 || n > AS_POOL_MAX_THREADS)
         return as_fail(ss->ctx, ANISTAR_EINVAL, "threads must be in [1, %d], got %d",
@@ -1512,66 +1474,27 @@ static anistar_status restars(as_starset *ss, int compact) {
 }
 
 anistar_status as_starset_insert(as_starset *ss, const double p[3], int32_t *gid_out) {
-    anistar_status s;
-    if ((s = grow_points(ss, (int64_t)ss->n + 1)) != ANISTAR_OK) return s;
-    int32_t gid = ss->n;
-    memcpy(ss->xyz + 3 * (size_t)gid, p, 3 * sizeof(double));
-    if ((s = as_starset_metric(ss, p, &ss->mf[gid])) != ANISTAR_OK) return s;
-    as_star *st = as_alloc(ss->ctx, sizeof *st);
-    if (!st) return as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    as_star_init(st, ss->ctx);
-    ss->n++;
-    ss->stars[gid] = st;
-    if (gid_out) *gid_out = gid;
-
+    /* design: a batch of one point (as_starset_insert_batch): its frame, the stars it
+     * conflicts with (searched with the id it will get), then the batch's steps; with
+     * threads, its star updates are the parallel tasks. (Building p's star at the same
+     * time as the updates, seeded from the stars before p enters them as a simulation is,
+     * gave other stars than the seeds do: the elephant's output then failed the
+     * independent check's size test at one facet, whose surface center depends on sites
+     * beyond its surface ball; not pursued.) */
+    as_bpoint b;
+    memset(&b, 0, sizeof b);
+    memcpy(b.p, p, sizeof b.p);
+    b.lfs = NAN;
+    anistar_status s = as_starset_metric(ss, p, &b.mf);
+    if (s != ANISTAR_OK) return s;
     size_t nl;
-    if ((s = conflicting_stars(ss, &ss->ws, ss->ctx, p, gid, &nl)) != ANISTAR_OK) return s;
-    /* 1. insert p into the conflicting stars: in parallel (each task one star, on its
-     * thread's scratch; the stars are distinct and an insertion reads no star but its
-     * own), then the rest in the stars' order. design: as_star_insert depends only on
-     * the star, p and the points, and apply_diff's table and events only on the order of
-     * the stars: the result is the serial loop's for any thread count. (Building p's star
-     * at the same time, seeded from the stars before p enters them as a simulation is,
-     * gave other stars than the seeds of step 2 do: the elephant's output then failed
-     * the independent check's size test at one facet, whose surface center depends on
-     * sites beyond its surface ball; not pursued.) */
-    const int par = ss->pool && nl >= 2;
-    if (par && (s = insert_parallel(ss, gid, nl)) != ANISTAR_OK) return s;
-    for (size_t k = 0; k < nl; k++) {
-        int32_t v = ss->ws.list[k];
-        as_star *sv = ss->stars[v];
-        const as_rfacet *old;
-        int32_t nold;
-        int was_closed, grew;
-        double zb[6];
-        if (par) {
-            const as_ptask *pt = &ss->ptask[k];
-            old = ss->parena[pt->thread].f + pt->off;
-            nold = pt->nold;
-            was_closed = pt->was_closed;
-            grew = pt->grew;
-            memcpy(zb, pt->zb, sizeof zb);
-        } else {
-            was_closed = sv->closed;
-            sv->hint = ss->ws.hints[k]; /* design: walk from a tet known to conflict with p */
-            if ((s = as_star_insert(&ss->env, sv, &ss->mf[v], &gid, 1, &ss->sc, NULL)) !=
-                ANISTAR_OK)
-                return s;
-            old = ss->sc.old;
-            nold = ss->sc.nold;
-            grew = entry_grew(ss, v, old, nold, zb);
-        }
-        if ((s = after_insert(ss, v, old, nold, was_closed, grew, zb)) != ANISTAR_OK) return s;
-    }
-    /* 2. p's star */
-    if ((s = build_star(ss, &ss->ws, &ss->env, &ss->sc, st, p, gid, &ss->mf[gid], nl, 0)) !=
-        ANISTAR_OK)
-        return s;
-    for (int32_t k = 0; k < st->nrf; k++) st->rf[k].fresh = 1;
-    if ((s = apply_diff(ss, gid, NULL, 0)) != ANISTAR_OK) return s;
-    if ((s = as_kdtree_insert(ss->ctx, ss->kd, p, gid)) != ANISTAR_OK) return s;
-    if ((s = restars(ss, 0)) != ANISTAR_OK) return s;
-    return restars(ss, 1);
+    if ((s = conflicting_stars(ss, &ss->ws, ss->ctx, p, ss->n, &nl)) != ANISTAR_OK) return s;
+    b.list = ss->ws.list; /* borrowed: the batch reads them before the workspace is reused */
+    b.hints = ss->ws.hints;
+    b.nl = nl;
+    s = as_starset_insert_batch(ss, &b, 1);
+    if (s == ANISTAR_OK && gid_out) *gid_out = b.gid;
+    return s;
 }
 
 /* ---- batches of insertions (issue 15) ------------------------------------------------- */
@@ -1611,8 +1534,8 @@ void as_bpoint_free(anistar_context *ctx, as_bpoint *b) {
     b->cap_list = b->cap_hints = b->nl = 0;
 }
 
-/* One task of a batch's first step: insert site btask[k].gid into star btask[k].v (as
- * insert_task). */
+/* One task of a batch's first step: insert site btask[k].gid into star btask[k].v (on
+ * the thread's scratch; the star's facets before go to the thread's arena). */
 static anistar_status binsert_task(void *arg, int32_t k, int t, anistar_context *tctx) {
     as_starset *ss = arg;
     const as_btask *bt = &ss->btask[k];
@@ -1643,7 +1566,7 @@ static anistar_status bstar_on(as_starset *ss, as_simws *w, const as_star_env *e
     if (b->nl > w->cap_list &&
         as_grow(ctx, (void **)&w->list, &w->cap_list, b->nl, sizeof *w->list))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (batch)");
-    if (b->nl) memcpy(w->list, b->list, b->nl * sizeof *w->list);
+    if (b->nl && w->list != b->list) memcpy(w->list, b->list, b->nl * sizeof *w->list);
     int32_t gid = b->gid;
     return build_star(ss, w, env, sc, ss->stars[gid], ss->xyz + 3 * (size_t)gid, gid,
                       &ss->mf[gid], b->nl, 0);

@@ -179,7 +179,6 @@ typedef struct as_starset {
     as_parena *parena;
     as_ptask *ptask;
     size_t cap_ptask;
-    int32_t pgid;            /* the site being inserted */
     as_btask *btask;         /* a batch's star updates (as_starset_insert_batch) */
     size_t cap_btask;
     as_bpoint *bpts;         /* the batch's points while their stars are built */

@@ -86,15 +86,15 @@ static void sweep(int threads) {
     assert_int_equal(a.live_blocks, 0);
     const long total = a.count;
 
-    /* every allocation of the first 6 (the context, the surface, the field), then 24
+    /* every allocation of the first 4 (the context, the surface, the field), then 16
      * spread evenly over the rest of the run (the sampler, the pool, the batches, the
      * output, the writer; a run costs about 0.2 s, mostly its start, and CI runs this
-     * three times), offset by the thread count so that the two sweeps fail at different
-     * places */
-    long stride = total > 6 ? (total - 6) / 24 + 1 : 1;
+     * three times within its 20 minutes), offset by the thread count so that the two
+     * sweeps fail at different places */
+    long stride = total > 4 ? (total - 4) / 16 + 1 : 1;
     long runs = 0, nomem = 0;
-    for (long k = 0; k < total; k += k < 6 ? 1 : stride) {
-        if (k >= 6 && k + threads < total) k += threads;
+    for (long k = 0; k < total; k += k < 4 ? 1 : stride) {
+        if (k >= 4 && k + threads < total) k += threads;
         a.fail_after = k;
         a.count = a.failures = 0;
         anistar_status st = one_run(&a, threads, out);

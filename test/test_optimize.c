@@ -198,21 +198,45 @@ static void test_ellipsoid_curvature_determinism(void **state) {
     }
 }
 
-/* A move and its undo leave the stars and the facet table as they were. */
-static void test_move_undo(void **state) {
-    (void)state;
-    anistar_context *ctx = anistar_context_new(NULL);
+/* The ellipsoid with the curvature metric (r0 0.8, gamma0 2.5) meshed, its star set
+ * kept: the moves' tests start from it. */
+typedef struct ell_run {
+    anistar_context *ctx;
     as_surface *s;
     as_field *f;
-    assert_int_equal(as_implicit_builtin(ctx, "ellipsoid", &s), ANISTAR_OK);
-    assert_int_equal(as_field_from_spec(ctx, s, "curvature", &f), ANISTAR_OK);
+    anistar_mesh *mesh;
+    as_starset *ss;
+} ell_run;
+
+static void ell_open(ell_run *r) {
+    r->ctx = anistar_context_new(NULL);
+    assert_int_equal(as_implicit_builtin(r->ctx, "ellipsoid", &r->s), ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(r->ctx, r->s, "curvature", &r->f), ANISTAR_OK);
     as_mesher_params p;
     as_mesher_params_default(&p);
     p.r0 = 0.8;
     p.gamma0 = 2.5;
-    anistar_mesh *mesh;
-    as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
+    assert_int_equal(as_mesher_run_keep(r->ctx, r->s, r->f, &p, NULL, &r->mesh, &r->ss),
+                     ANISTAR_OK);
+}
+
+static void ell_close(ell_run *r) {
+    as_starset_destroy(r->ss);
+    free(r->ss);
+    as_mesh_free(r->mesh);
+    as_field_free(r->f);
+    as_surface_free(r->s);
+    anistar_context_free(r->ctx);
+}
+
+/* A move and its undo leave the stars and the facet table as they were. */
+static void test_move_undo(void **state) {
+    (void)state;
+    ell_run R;
+    ell_open(&R);
+    anistar_context *ctx = R.ctx;
+    as_surface *s = R.s;
+    as_starset *ss = R.ss;
     as_starmove mv;
     memset(&mv, 0, sizeof mv);
     tu_rng rng = {7};
@@ -262,30 +286,18 @@ static void test_move_undo(void **state) {
         assert_true(d2 == 0);
     }
     as_starmove_free(ctx, &mv);
-    as_starset_destroy(ss);
-    free(ss);
-    as_mesh_free(mesh);
-    as_field_free(f);
-    as_surface_free(s);
-    anistar_context_free(ctx);
+    ell_close(&R);
 }
 
 /* A move with mv.early: stopped early (doomed) only when the full move ends inconsistent
  * or with an open star; otherwise the same stars, facet for facet, as the full move. */
 static void test_move_early(void **state) {
     (void)state;
-    anistar_context *ctx = anistar_context_new(NULL);
-    as_surface *s;
-    as_field *f;
-    assert_int_equal(as_implicit_builtin(ctx, "ellipsoid", &s), ANISTAR_OK);
-    assert_int_equal(as_field_from_spec(ctx, s, "curvature", &f), ANISTAR_OK);
-    as_mesher_params p;
-    as_mesher_params_default(&p);
-    p.r0 = 0.8;
-    p.gamma0 = 2.5;
-    anistar_mesh *mesh;
-    as_starset *ss;
-    assert_int_equal(as_mesher_run_keep(ctx, s, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
+    ell_run R;
+    ell_open(&R);
+    anistar_context *ctx = R.ctx;
+    as_surface *s = R.s;
+    as_starset *ss = R.ss;
     as_starmove mv;
     memset(&mv, 0, sizeof mv);
     tu_rng rng = {11};
@@ -358,12 +370,7 @@ static void test_move_early(void **state) {
     assert_true(doomed > 0);
     assert_true(kept > 0);
     as_starmove_free(ctx, &mv);
-    as_starset_destroy(ss);
-    free(ss);
-    as_mesh_free(mesh);
-    as_field_free(f);
-    as_surface_free(s);
-    anistar_context_free(ctx);
+    ell_close(&R);
 }
 
 /* The public parameter: range, default, get. */

@@ -1032,15 +1032,51 @@ enum { JOB_NONE = -1, JOB_RULE1 = 0, JOB_RULE2 = 1, JOB_RULE3 = 2, JOB_TOPOLOGY 
 
 /* Pop the next valid job: the topology rule first (a star that is not one closed fan),
  * then the entry of the highest-priority rule; *rule = JOB_NONE when none. */
+/* Drop the stars on top of the open-star stack that closed since they were queued. */
+static void drop_closed_open(as_starset *ss) {
+    while (ss->nopen > 0 && ss->stars[ss->open[ss->nopen - 1]]->closed)
+        ss->stars[ss->open[--ss->nopen]]->topo_queued = 0;
+}
+
+/* Whether entry e of queue k (0, 1: rules 1, 2 on a star's facet; 2: rule 3 on an
+ * inconsistent facet) is still a job; then its queue flag is cleared and the star and the
+ * facet (for rule 3, in the lowest vertex's star that holds it) are in *v, *f. */
+static int take_entry(refiner *R, int k, const as_qentry *e, int32_t *v, as_rfacet *f) {
+    as_starset *ss = R->ss;
+    const as_gid *g = e->key.g;
+    if (k < 2) {
+        as_star *st = ss->stars[e->star];
+        int32_t i = as_star_find(st, g);
+        if (i < 0 || !(st->rf[i].queued & (1u << k))) return 0;
+        st->rf[i].queued &= (uint8_t) ~(1u << k);
+        *v = e->star;
+        *f = st->rf[i];
+        return 1;
+    }
+    as_ftab_entry *te = as_starset_lookup(ss, e->key);
+    if (!te) return 0;
+    te->queued = 0;
+    if (te->incpos < 0) return 0;
+    for (int b = 0; b < 3; b++) {
+        if (!(te->mask & (1u << b))) continue;
+        as_star *st = ss->stars[g[b]];
+        int32_t i = as_star_find(st, g);
+        if (i < 0) continue;
+        *v = g[b];
+        *f = st->rf[i];
+        return 1;
+    }
+    return 0;
+}
+
 static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *fout,
                                int *cause) {
     as_starset *ss = R->ss;
     anistar_status s;
-    while (ss->nopen > 0) {
+    drop_closed_open(ss);
+    if (ss->nopen > 0) {
         int32_t v = ss->open[--ss->nopen];
-        as_star *st = ss->stars[v];
-        st->topo_queued = 0;
-        if (st->closed) continue;
+        ss->stars[v]->topo_queued = 0;
         *rule = JOB_TOPOLOGY;
         *star = v;
         memset(fout, 0, sizeof *fout);
@@ -1049,37 +1085,15 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
     for (int k = 0; k < 3; k++) {
         as_qentry e;
         while (as_queue_pop(&R->q[k], &e)) {
-            const as_gid *g = e.key.g;
+            if (!take_entry(R, k, &e, star, fout)) continue;
             if (k < 2) {
-                as_star *st = ss->stars[e.star];
-                int32_t i = as_star_find(st, g);
-                if (i < 0 || !(st->rf[i].queued & (1u << k))) continue;
-                st->rf[i].queued &= (uint8_t) ~(1u << k);
-                double viol =
-                    k == 0 ? as_rule1_violation(ss, R->prm, e.star, &st->rf[i], cause, &s)
-                           : as_rule2_violation(ss, R->prm, e.star, &st->rf[i]);
+                double viol = k == 0 ? as_rule1_violation(ss, R->prm, *star, fout, cause, &s)
+                                     : as_rule2_violation(ss, R->prm, *star, fout);
                 if (k == 0 && s != ANISTAR_OK) return s;
                 if (viol <= 0) continue;
-                *rule = k;
-                *star = e.star;
-                *fout = st->rf[i];
-                return ANISTAR_OK;
             }
-            as_ftab_entry *te = as_starset_lookup(ss, e.key);
-            if (!te) continue;
-            te->queued = 0;
-            if (te->incpos < 0) continue;
-            /* the lowest vertex whose star holds it */
-            for (int b = 0; b < 3; b++) {
-                if (!(te->mask & (1u << b))) continue;
-                as_star *st = ss->stars[g[b]];
-                int32_t i = as_star_find(st, g);
-                if (i < 0) continue;
-                *rule = JOB_RULE3;
-                *star = g[b];
-                *fout = st->rf[i];
-                return ANISTAR_OK;
-            }
+            *rule = k;
+            return ANISTAR_OK;
         }
     }
     *rule = JOB_NONE;
@@ -1136,9 +1150,8 @@ static anistar_status resv_epoch(refiner *R, uint32_t *ep) {
     return ANISTAR_OK;
 }
 
-/* Take up to prm->batch valid entries of queue k (as next_job skips stale ones). */
+/* Take up to prm->batch valid entries of queue k (take_entry, as next_job). */
 static anistar_status batch_take(refiner *R, int k) {
-    as_starset *ss = R->ss;
     const int32_t B = R->prm->batch;
     if ((size_t)B > R->cap_jobs) {
         size_t old = R->cap_jobs;
@@ -1153,32 +1166,8 @@ static anistar_status batch_take(refiner *R, int k) {
     size_t ndef = 0;
     as_qentry e;
     while (R->njobs < B && as_queue_pop(&R->q[k], &e)) {
-        const as_gid *g = e.key.g;
         as_bjob *J = &R->jobs[R->njobs];
-        if (k < 2) {
-            as_star *st = ss->stars[e.star];
-            int32_t i = as_star_find(st, g);
-            if (i < 0 || !(st->rf[i].queued & (1u << k))) continue;
-            st->rf[i].queued &= (uint8_t) ~(1u << k);
-            J->v = e.star;
-            J->f = st->rf[i];
-        } else {
-            as_ftab_entry *te = as_starset_lookup(ss, e.key);
-            if (!te) continue;
-            te->queued = 0;
-            if (te->incpos < 0) continue;
-            int found = 0;
-            for (int b = 0; b < 3 && !found; b++) {
-                if (!(te->mask & (1u << b))) continue;
-                as_star *st = ss->stars[g[b]];
-                int32_t i = as_star_find(st, g);
-                if (i < 0) continue;
-                J->v = g[b];
-                J->f = st->rf[i];
-                found = 1;
-            }
-            if (!found) continue;
-        }
+        if (!take_entry(R, k, &e, &J->v, &J->f)) continue;
         J->e = e;
         J->rule = k;
         /* design: a facet that shares its star or a vertex with a facet taken before in
@@ -1647,8 +1636,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         }
         /* the open stars that closed since they were queued are dropped (as next_job
          * does), so that a topology job is left only when one is due */
-        while (ss->nopen > 0 && ss->stars[ss->open[ss->nopen - 1]]->closed)
-            ss->stars[ss->open[--ss->nopen]]->topo_queued = 0;
+        drop_closed_open(ss);
         if (prm->batch > 1 && !prm->part && ss->nopen == 0) {
             /* batches (batch_step) for the rules' jobs; topology jobs and the rest one at
              * a time below */

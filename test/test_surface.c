@@ -7,6 +7,7 @@
  */
 #include "test_util.h"
 
+#include "pool.h"
 #include "surface/surface.h"
 
 #include <float.h>
@@ -1107,6 +1108,63 @@ static void test_callbacks(void **state) {
     anistar_context_free(ctx);
 }
 
+/* ---- the analysis kept by the surface ---------------------------------------------------- */
+
+/* The first sample of a surface given by a function analyses S on the sampler's grid (a
+ * value per node); the later ones, of any size, reuse it and only refine their crossings:
+ * the same points as a fresh surface's first sample of that size, for a small fraction
+ * of the evaluations. */
+static void test_sample_kept(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    const double c[3] = {0, 0, 0};
+    int calls_a = 0, calls_b = 0;
+    as_implicit_fn fa = {cb_value, cb_gradient, NULL, &calls_a};
+    as_implicit_fn fb = {cb_value, cb_gradient, NULL, &calls_b};
+    as_surface *sa, *sb;
+    assert_int_equal(as_implicit_create(ctx, &fa, c, 4.5, &sa), ANISTAR_OK);
+    assert_int_equal(as_implicit_create(ctx, &fb, c, 4.5, &sb), ANISTAR_OK);
+    as_point_sample s256, s1024, fresh;
+    assert_int_equal(as_surface_sample(ctx, sa, 256, &s256), ANISTAR_OK);
+    const int first = calls_a;
+    /* the values at the grid's nodes inside the bounding sphere: about pi/6 of the 65^3 */
+    assert_true(first > 100000);
+    assert_int_equal(as_surface_sample(ctx, sa, 1024, &s1024), ANISTAR_OK);
+    const int second = calls_a - first;
+    assert_true(second > 0);           /* its crossings are refined */
+    assert_true(second < first / 8);   /* but S is not analysed again */
+    /* the same points as a first sample of 1,024 */
+    assert_int_equal(as_surface_sample(ctx, sb, 1024, &fresh), ANISTAR_OK);
+    assert_true(calls_b > 100000);
+    assert_int_equal(fresh.n, s1024.n);
+    assert_int_equal(fresh.ncomponents, s1024.ncomponents);
+    assert_memory_equal(fresh.points, s1024.points, 3 * fresh.n * sizeof(double));
+    assert_memory_equal(fresh.component, s1024.component, fresh.n * sizeof(int32_t));
+    assert_memory_equal(fresh.area, s1024.area, fresh.ncomponents * sizeof(double));
+    check_sample(ctx, sa, &s256);
+    check_sample(ctx, sa, &s1024);
+    /* a sampler with threads gives them too, from the kept analysis */
+    as_pool *pool = NULL;
+    as_sampler *sp = NULL;
+    assert_int_equal(as_pool_new(ctx, 2, &pool), ANISTAR_OK);
+    assert_int_equal(as_sampler_new(ctx, sa, pool, &sp), ANISTAR_OK);
+    as_point_sample pooled;
+    const int before = calls_a;
+    assert_int_equal(as_sampler_sample(ctx, sp, 1024, &pooled), ANISTAR_OK);
+    assert_true(calls_a - before < first / 8);
+    assert_int_equal(pooled.n, s1024.n);
+    assert_memory_equal(pooled.points, s1024.points, 3 * pooled.n * sizeof(double));
+    as_surface_sample_free(ctx, &pooled);
+    as_sampler_free(ctx, sp);
+    as_pool_free(pool);
+    as_surface_sample_free(ctx, &s256);
+    as_surface_sample_free(ctx, &s1024);
+    as_surface_sample_free(ctx, &fresh);
+    as_surface_free(sa); /* frees the kept analysis: no leak under ASan */
+    as_surface_free(sb);
+    anistar_context_free(ctx);
+}
+
 /* ---- singular points --------------------------------------------------------------------- */
 
 static void test_singular(void **state) {
@@ -1333,7 +1391,7 @@ int main(void) {
         cmocka_unit_test(test_nan_is_error),      cmocka_unit_test(test_no_surface),
         cmocka_unit_test(test_builtin_specs),     cmocka_unit_test(test_builtins_sample),
         cmocka_unit_test(test_small_components),  cmocka_unit_test(test_thin_components),
-        cmocka_unit_test(test_sample_area),       cmocka_unit_test(test_callbacks),
+        cmocka_unit_test(test_sample_area),       cmocka_unit_test(test_callbacks), cmocka_unit_test(test_sample_kept),
         cmocka_unit_test(test_singular),          cmocka_unit_test(test_alloc_failures),
         cmocka_unit_test(test_threads),           cmocka_unit_test(test_public_api),
         cmocka_unit_test(test_builtin_native),

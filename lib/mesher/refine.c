@@ -1622,7 +1622,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if ((int64_t)(ss->n - ss->first_site) >= maxv) break; /* the loop says why */
         s = insert_point(&R, p);
     }
-    as_sampler_free(ctx, ss->sampler); /* the grid's 12 MB, before the stars grow */
+    as_sampler_free(ctx, ss->sampler); /* the analysis stays with the surface */
     ss->sampler = NULL;
     double t1 = now_seconds();
     R.cnt.t_init = t1 - t0;

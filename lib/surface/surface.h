@@ -102,6 +102,11 @@ struct anistar_surface {
     double center[3];     /* bounding sphere */
     double radius;
     double tol;           /* AS_SURFACE_REL_TOL * radius */
+    /* The sampler's analysis of S (kinds sampled through f): made by the first sample and
+     * kept, so that the metric's defaults and the mesher's samples share it (as_surface_sample).
+     * A cache: filled through a const surface, by the one thread that uses the surface
+     * (docs/api.md), never by a mesher's worker threads. */
+    struct as_sbasis *basis;
 };
 
 /* Fill the common header (kinds call it from their constructors). Returns EINVAL for a
@@ -271,12 +276,9 @@ anistar_status as_surface_sample(anistar_context *ctx, const as_surface *s, size
 void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp);
 
 /* A sampler of s: as_sampler_sample(ctx, sp, n, out) gives exactly as_surface_sample(ctx,
- * s, n, out), and for a surface given by a function (no sampler of its own) the costly
- * analysis of S on the grid (values, curvature bounds, components, areas) is done by the
- * first call and kept for the next ones (the mesher samples S three times). Free with
- * as_sampler_free (the analysis holds about 45 bytes per grid node, 12 MB). With a pool
- * (pool.h; NULL: none) the crossings of a sample are refined on its threads: the points
- * are the same (their order is decided before). */
+ * s, n, out). With a pool (pool.h; NULL: none) the grid values of the analysis and the
+ * crossings of a sample are computed on its threads: the points are the same (their
+ * order is decided before). */
 typedef struct as_sampler as_sampler;
 struct as_pool;
 anistar_status as_sampler_new(anistar_context *ctx, const as_surface *s, struct as_pool *pool,

@@ -176,6 +176,89 @@ static void test_restricted_vs_brute_force(void **state) {
     anistar_context_free(ctx);
 }
 
+/* as_star_probe: the facets of a star with more sites, the star itself unchanged. Stars of
+ * the unit sphere's sites grown to half their sites; the probe with the other half gives
+ * the brute-force restricted facets of all of them, leaves the packed star as it was
+ * (facets, centers, version, block), and agrees with the star after a real insertion. */
+static void test_probe_vs_brute_force(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    tu_rng r = {4242};
+    as_star_scratch sc; /* one scratch for every trial, as a thread's workspace */
+    memset(&sc, 0, sizeof sc);
+    for (int trial = 0; trial < 24; trial++) {
+        int32_t nsites = 10 + (int32_t)(tu_rng_u64(&r) % 60);
+        int32_t n = 8 + nsites;
+        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
+        int64_t *ids = malloc((size_t)n * sizeof *ids);
+        for (int32_t c = 0; c < 8; c++) {
+            for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 2.5 : -2.5;
+            ids[c] = c;
+        }
+        for (int32_t i = 8; i < n; i++) {
+            sphere_point(&r, xyz + 3 * i);
+            ids[i] = i;
+        }
+        as_metric_frame mf;
+        random_frame(&r, trial < 6 ? 1.0 + 1e-9 : 4.0, &mf);
+        as_star_env env = {ctx, s, xyz, 0, trial % 2};
+        as_star st;
+        as_star_init(&st, ctx);
+        int32_t half = nsites / 2, rest[128];
+        for (int32_t i = 9; i < n; i++) rest[i - 9] = i;
+        assert_int_equal(as_star_build_seeded(&env, &st, &mf, 8, rest, half - 1, &sc),
+                         ANISTAR_OK);
+        /* the star before the probe */
+        const int32_t nrf0 = st.nrf;
+        as_rfacet *rf0 = malloc(((size_t)nrf0 + 1) * sizeof *rf0);
+        memcpy(rf0, st.rf, (size_t)nrf0 * sizeof *rf0);
+        const uint32_t version0 = st.version;
+        const void *blk0 = st.blk;
+        void *bytes0 = malloc(st.blk_bytes + 1);
+        memcpy(bytes0, st.blk, st.blk_bytes);
+        const int32_t nmore = nsites - half;
+        const as_rfacet *prf;
+        int32_t pn;
+        assert_int_equal(as_star_probe(&env, &st, &mf, rest + half - 1, nmore, &sc, &prf, &pn),
+                         ANISTAR_OK);
+        int32_t *bf = malloc(3 * 64 * (size_t)n * sizeof *bf);
+        size_t m = brute_restricted(ctx, xyz, ids, n, 8, &mf, bf);
+        assert_int_equal((size_t)pn, m);
+        for (int32_t k = 0; k < pn; k++)
+            for (int j = 0; j < 3; j++) assert_int_equal(prf[k].g[j], bf[3 * k + j]);
+        /* the star is as it was */
+        assert_int_equal(st.nrf, nrf0);
+        assert_true(st.version == version0);
+        assert_ptr_equal(st.blk, blk0);
+        assert_memory_equal(st.blk, bytes0, st.blk_bytes);
+        assert_null(st.d);
+        for (int32_t k = 0; k < nrf0; k++) {
+            assert_memory_equal(st.rf[k].g, rf0[k].g, sizeof rf0[k].g);
+            assert_memory_equal(st.rf[k].c, rf0[k].c, sizeof rf0[k].c);
+        }
+        /* and inserting the sites for real gives the probe's triples */
+        as_gid *ptri = malloc(3 * ((size_t)pn + 1) * sizeof *ptri);
+        for (int32_t k = 0; k < pn; k++) memcpy(ptri + 3 * k, prf[k].g, 3 * sizeof *ptri);
+        assert_int_equal(as_star_insert(&env, &st, &mf, rest + half - 1, nmore, &sc, NULL),
+                         ANISTAR_OK);
+        assert_int_equal(st.nrf, pn);
+        for (int32_t k = 0; k < pn; k++)
+            assert_memory_equal(st.rf[k].g, ptri + 3 * k, 3 * sizeof(as_gid));
+        free(ptri);
+        free(bf);
+        free(bytes0);
+        free(rf0);
+        as_star_destroy(ctx, &st);
+        free(xyz);
+        free(ids);
+    }
+    as_star_scratch_free(ctx, &sc);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 /* The surface memo (as_star_memo) changes no bit: a star built without it, then twice
  * with it (the second time from the memo's answers), on a polyhedral surface. */
 static void test_memo_same_bits(void **state) {
@@ -433,6 +516,7 @@ int main(void) {
         cmocka_unit_test(test_packed_star_is_its_del3),
         cmocka_unit_test(test_corners_generic),
         cmocka_unit_test(test_restricted_vs_brute_force),
+        cmocka_unit_test(test_probe_vs_brute_force),
         cmocka_unit_test(test_memo_same_bits),
         cmocka_unit_test(test_facet_table_vs_rescan),
     };

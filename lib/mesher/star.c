@@ -534,6 +534,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         memset(f, 0, sizeof *f);
         memcpy(f->g, g, sizeof g);
         f->fresh = 1;
+        if (sc->probe) { /* the triple is all a probe asks: no crossing, no radius */
+            memcpy(f->c, vx, sizeof f->c);
+            continue;
+        }
         /* design: dual segment between the two mapped circumcenters; the crossing nearest
          * the facet's own circumcenter (DESIGN.md 4.4). */
         double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
@@ -1060,6 +1064,33 @@ anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metr
     if (s != ANISTAR_OK) return s;
     s = star_insert(env, st, mf, gids, n, sc, changed);
     return star_done(env, st, sc, s);
+}
+
+anistar_status as_star_probe(const as_star_env *env, const as_star *st, const as_metric_frame *mf,
+                             const int32_t *gids, int32_t n, as_star_scratch *sc,
+                             const as_rfacet **rf, int32_t *nrf) {
+    *rf = NULL;
+    *nrf = 0;
+    as_star t = *st; /* reads st's packed block; the working arrays are sc's */
+    anistar_status s = star_open(env, &t, mf, sc, 1);
+    if (s != ANISTAR_OK) return s;
+    sc->probe = 1;
+    s = star_insert(env, &t, mf, gids, n, sc, NULL);
+    sc->probe = 0;
+    /* the working arrays go back to the scratch (they may have grown); nothing is packed */
+    sc->rf = t.rf;
+    sc->cap_rf = t.cap_rf;
+    sc->itet = t.itet;
+    sc->cap_itet = t.cap_itet;
+    sc->isph = t.isph;
+    sc->cap_isph = t.cap_isph;
+    sc->tflag = t.tflag;
+    sc->cap_tflag = t.cap_tflag;
+    if (s == ANISTAR_OK) {
+        *rf = sc->rf;
+        *nrf = t.nrf;
+    }
+    return s;
 }
 
 anistar_status as_star_keep_points(const as_star_env *env, as_star *st, const as_metric_frame *mf,

@@ -188,6 +188,7 @@ typedef struct as_star_scratch {
     float *fsph;
     size_t cap_fsph;
     int sph_fresh;
+    int probe;          /* as_star_probe: the facets' triples only (no surface centers) */
     int32_t *sprev;
     int32_t cap_sprev;
     /* star_update: per tet slot, its index in the previous incident list (-1 between
@@ -236,6 +237,20 @@ anistar_status as_star_build_seeded(const as_star_env *env, as_star *st,
 anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                               const int32_t *gids, int32_t n, as_star_scratch *sc,
                               int32_t *changed);
+
+/*
+ * The restricted facets star st would have with the sites gids[0..n) inserted, st itself
+ * unchanged: st is unpacked into sc's working triangulation, the sites are inserted
+ * there and the facets recomputed where tets changed (as as_star_insert does), and
+ * nothing is packed back. *rf, *nrf: the facets, sorted by (g0, g1, g2), in sc's scratch
+ * (valid until sc's next use). The triangulation is unique (Delaunay with symbolic
+ * perturbation), so the facets are those of a star built from scratch with st's sites
+ * and these. Only their triples are computed: the new facets' surface centers are not
+ * searched (c = v, r = 0). Errors as as_star_insert.
+ */
+anistar_status as_star_probe(const as_star_env *env, const as_star *st, const as_metric_frame *mf,
+                             const int32_t *gids, int32_t n, as_star_scratch *sc,
+                             const as_rfacet **rf, int32_t *nrf);
 
 /*
  * Compact star st: rebuild it from scratch (freeing its arrays) from the corners, v, and

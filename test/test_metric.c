@@ -2,7 +2,7 @@
  * test_metric — lib/geom/metric.c and the public anistar_tensor_* functions: frames
  * (F^T F = M, F F^-1 = I, validation), the fixed-order transform, distances, the
  * distortion against an independent computation, its symmetry and bounds, the filter of
- * as_metric_distortion_le against the exact decision, the ellipsoid box, and bad input.
+ * as_metric_distortion_le and _over against the exact decision, the ellipsoid box, and bad input.
  *
  * The independent distortion (ref_distortion): F_M, F_N^-1, F_N, F_M^-1 are built in long
  * double from the constructed eigenframes (not from the library's eigen-solver),
@@ -540,6 +540,11 @@ static void test_distortion_filter(void **state) {
                     fail_msg("case %ld g %g: gamma %.17g, le %d %d, filter %d", it, g, gam, le,
                              le2, f);
             }
+            /* as_metric_distortion_over: 0 where the filter proves gamma <= g, else
+             * gamma itself, the bits of as_metric_distortion (g >= 1 here) */
+            double over = as_metric_distortion_over(&a, &b, g);
+            if (f == 1) assert_true(over == 0);
+            else assert_true(over == gam);
             if (f == 1) check_le(gam, g * (1 + 1e-13), "filter accepted gamma > g", it);
             if (f == 0) check_le(g, gam * (1 + 1e-13), "filter rejected gamma <= g", it);
         }

@@ -358,6 +358,15 @@ int as_metric_distortion_le(const as_metric_frame *a, const as_metric_frame *b, 
     return as_metric_distortion_pair(&pr) <= g;
 }
 
+double as_metric_distortion_over(const as_metric_frame *a, const as_metric_frame *b, double g) {
+    if (!(g >= 1)) return as_metric_distortion(a, b);
+    if (as_metric_same(a, b)) return 0;
+    as_metric_pair pr;
+    int d = as_metric_filter_pair(a, b, g, &pr); /* a, b differ: pr holds the Gram matrices */
+    if (d == 1) return 0;
+    return as_metric_distortion_pair(&pr);
+}
+
 int as_metric_distortion_filter(const as_metric_frame *a, const as_metric_frame *b, double g) {
     as_metric_pair pr;
     return as_metric_filter_pair(a, b, g, &pr);

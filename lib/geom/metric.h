@@ -76,6 +76,10 @@ int as_metric_distortion_le(const as_metric_frame *a, const as_metric_frame *b, 
  * gamma > g, -1 when it cannot tell (then as_metric_distortion_le solves for gamma). For
  * tests and benchmarks. */
 int as_metric_distortion_filter(const as_metric_frame *a, const as_metric_frame *b, double g);
+/* as_metric_distortion(a, b) where as_metric_distortion_le(a, b, g) is 0, and 0 where the
+ * filter proves gamma <= g (then gamma < g up to its margin): the decision and the value
+ * from one pair of Gram matrices, bit for bit those of the two calls (g >= 1). */
+double as_metric_distortion_over(const as_metric_frame *a, const as_metric_frame *b, double g);
 
 /* Half-extents of the axis-aligned box of the M-ellipsoid {x : |F(x - c)| <= r}:
  * h[i] = r * |row_i(F^-1)|. */

@@ -144,20 +144,19 @@ static double rule1_local(const as_starset *ss, anistar_context *ctx,
     }
     if (!small && f->g[0] >= ss->first_site) {
         /* design: gamma(tau) approximated by the largest pairwise distortion of the
-         * vertices' metrics (paper 5.1); the trace filter settles most pairs. */
+         * vertices' metrics (paper 5.1); the trace filter settles most pairs, and only a
+         * pair it does not prove below gamma0 is solved for (a pair it proves below cannot
+         * be the largest distortion at or above gamma0) */
         const as_metric_frame *m0 = &ss->mf[f->g[0]], *m1 = &ss->mf[f->g[1]],
                               *m2 = &ss->mf[f->g[2]];
-        if (!as_metric_distortion_le(m0, m1, prm->gamma0) ||
-            !as_metric_distortion_le(m0, m2, prm->gamma0) ||
-            !as_metric_distortion_le(m1, m2, prm->gamma0)) {
-            double g = as_metric_distortion(m0, m1);
-            double g2 = as_metric_distortion(m0, m2), g3 = as_metric_distortion(m1, m2);
-            if (g2 > g) g = g2;
-            if (g3 > g) g = g3;
-            if (g >= prm->gamma0 && g / prm->gamma0 > viol) {
-                viol = g / prm->gamma0;
-                why = AS_CAUSE_DISTORTION;
-            }
+        double g = as_metric_distortion_over(m0, m1, prm->gamma0);
+        double g2 = as_metric_distortion_over(m0, m2, prm->gamma0);
+        double g3 = as_metric_distortion_over(m1, m2, prm->gamma0);
+        if (g2 > g) g = g2;
+        if (g3 > g) g = g3;
+        if (g >= prm->gamma0 && g / prm->gamma0 > viol) {
+            viol = g / prm->gamma0;
+            why = AS_CAUSE_DISTORTION;
         }
     }
     if (!small && prm->approx > 0) {

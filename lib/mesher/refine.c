@@ -116,13 +116,109 @@ int as_facet_below_hmin(const as_starset *ss, const as_rfacet *f) {
     return 0;
 }
 
+/* ---- rule 1's distortions, cached by pair ----------------------------------------------- */
+
+/* A pair of sites (a < b) and as_metric_distortion_over(M_a, M_b, gamma0): 0 where the
+ * filter proves gamma <= gamma0, else gamma. a == b == 0 marks an empty slot (site ids
+ * are at least 8). */
+typedef struct as_gpair {
+    as_gid a, b;
+    double g;
+} as_gpair;
+
+/*
+ * design: rule 1's distortion part is the largest of the three pairwise distortions of a
+ * facet's vertex metrics, and the same pairs come back again and again: a facet is judged
+ * in each of its three stars, and facets are made and unmade as the stars grow (the
+ * paper's torus judged 405,930 pairs for 5,768 vertices, 8% of the run). A site's metric
+ * is fixed while the refinement runs, so a pair's value is a function of its two ids:
+ * it is kept in an open-addressing table (16 bytes a pair with 32-bit ids), read by the
+ * threads and filled only between parallel parts, so the values, and the output, are
+ * the same whatever hits. The optimiser, which moves sites, does not use it.
+ */
+typedef struct as_gcache {
+    as_gpair *t;
+    size_t cap, n; /* cap a power of two, or 0 */
+} as_gcache;
+
+static inline size_t gpair_hash(as_gid a, as_gid b, size_t cap) {
+    uint64_t h = (uint64_t)a * 0x9E3779B97F4A7C15ULL ^ (uint64_t)b * 0xC2B2AE3D27D4EB4FULL;
+    h ^= h >> 31;
+    return (size_t)h & (cap - 1);
+}
+
+/* The cached value of pair (a, b), a < b: 1 and *g when present, else 0. */
+static int gcache_get(const as_gcache *gc, as_gid a, as_gid b, double *g) {
+    if (!gc || gc->cap == 0) return 0;
+    for (size_t i = gpair_hash(a, b, gc->cap);; i = (i + 1) & (gc->cap - 1)) {
+        const as_gpair *e = &gc->t[i];
+        if (e->a == a && e->b == b) {
+            *g = e->g;
+            return 1;
+        }
+        if (e->a == 0 && e->b == 0) return 0;
+    }
+}
+
+/* Keep pair (a, b): its value g. A table that cannot grow keeps what it has (a cache:
+ * the values do not depend on it). */
+static void gcache_put(anistar_context *ctx, as_gcache *gc, as_gid a, as_gid b, double g) {
+    if (2 * (gc->n + 1) > gc->cap) {
+        size_t cap = gc->cap ? 2 * gc->cap : 1024;
+        as_gpair *t = as_alloc_array(ctx, cap, sizeof *t);
+        if (!t) return;
+        memset(t, 0, cap * sizeof *t);
+        for (size_t k = 0; k < gc->cap; k++) {
+            const as_gpair *e = &gc->t[k];
+            if (e->a == 0 && e->b == 0) continue;
+            size_t i = gpair_hash(e->a, e->b, cap);
+            while (!(t[i].a == 0 && t[i].b == 0)) i = (i + 1) & (cap - 1);
+            t[i] = *e;
+        }
+        as_free(ctx, gc->t, gc->cap * sizeof *gc->t);
+        gc->t = t;
+        gc->cap = cap;
+    }
+    size_t i = gpair_hash(a, b, gc->cap);
+    for (;; i = (i + 1) & (gc->cap - 1)) {
+        as_gpair *e = &gc->t[i];
+        if (e->a == a && e->b == b) return;
+        if (e->a == 0 && e->b == 0) break;
+    }
+    gc->t[i] = (as_gpair){a, b, g};
+    gc->n++;
+}
+
+static void gcache_free(anistar_context *ctx, as_gcache *gc) {
+    as_free(ctx, gc->t, gc->cap * sizeof *gc->t);
+    memset(gc, 0, sizeof *gc);
+}
+
+/* The pairs a rule-1 test solved that the cache did not hold (for the caller to keep). */
+typedef struct as_gnew {
+    as_gpair p[3];
+    int n;
+} as_gnew;
+
+/* as_metric_distortion_over for sites a < b, from gc when it holds the pair (gc NULL: no
+ * cache); a pair solved here is added to fresh (NULL: not kept). */
+static double pair_over(const as_starset *ss, const as_gcache *gc, as_gid a, as_gid b,
+                        double gamma0, as_gnew *fresh) {
+    double g;
+    if (gcache_get(gc, a, b, &g)) return g;
+    g = as_metric_distortion_over(&ss->mf[a], &ss->mf[b], gamma0);
+    if (fresh) fresh->p[fresh->n++] = (as_gpair){a, b, g};
+    return g;
+}
+
 /* Rule 1 without its feature-size part (which reads and fills the star set's lfs cache):
  * nothing but f, the points and frames, and the surface (ctx takes a projection's error).
  * The threads of drain run it. */
 static double rule1_local(const as_starset *ss, anistar_context *ctx,
                           const as_mesher_params *prm, const as_rfacet *f, int *cause,
-                          anistar_status *err) {
+                          anistar_status *err, const as_gcache *gc, as_gnew *fresh) {
     double viol = 0;
+    if (fresh) fresh->n = 0;
     int why = AS_CAUSE_SIZE;
     *err = ANISTAR_OK;
     /* design: the Euclidean bounds (MMG's hmin/hmax, edge lengths): a facet whose longest
@@ -146,12 +242,11 @@ static double rule1_local(const as_starset *ss, anistar_context *ctx,
         /* design: gamma(tau) approximated by the largest pairwise distortion of the
          * vertices' metrics (paper 5.1); the trace filter settles most pairs, and only a
          * pair it does not prove below gamma0 is solved for (a pair it proves below cannot
-         * be the largest distortion at or above gamma0) */
-        const as_metric_frame *m0 = &ss->mf[f->g[0]], *m1 = &ss->mf[f->g[1]],
-                              *m2 = &ss->mf[f->g[2]];
-        double g = as_metric_distortion_over(m0, m1, prm->gamma0);
-        double g2 = as_metric_distortion_over(m0, m2, prm->gamma0);
-        double g3 = as_metric_distortion_over(m1, m2, prm->gamma0);
+         * be the largest distortion at or above gamma0); the pairs' values are cached
+         * (as_gcache) */
+        double g = pair_over(ss, gc, f->g[0], f->g[1], prm->gamma0, fresh);
+        double g2 = pair_over(ss, gc, f->g[0], f->g[2], prm->gamma0, fresh);
+        double g3 = pair_over(ss, gc, f->g[1], f->g[2], prm->gamma0, fresh);
         if (g2 > g) g = g2;
         if (g3 > g) g = g3;
         if (g >= prm->gamma0 && g / prm->gamma0 > viol) {
@@ -206,7 +301,7 @@ static double rule1_feature(as_starset *ss, int32_t v, const as_rfacet *f, doubl
 double as_rule1_violation(as_starset *ss, const as_mesher_params *prm, int32_t v,
                           const as_rfacet *f, int *cause, anistar_status *err) {
     int why;
-    double viol = rule1_local(ss, ss->ctx, prm, f, &why, err);
+    double viol = rule1_local(ss, ss->ctx, prm, f, &why, err, NULL, NULL);
     if (*err != ANISTAR_OK) return 0;
     viol = rule1_feature(ss, v, f, viol, &why, err);
     if (*err != ANISTAR_OK) return 0;
@@ -240,6 +335,7 @@ typedef struct refiner {
     uint64_t n3, low_at;
     int64_t low_vertices;
     int hard_limit; /* the vertex limit in force is the star set's hard limit */
+    as_gcache gc;           /* rule 1's pair distortions (as_gcache) */
     struct as_evpre *evpre; /* drain's parallel part, per event */
     size_t cap_evpre;
     struct as_pcand *pcand; /* Pick_valid's candidates of a round (threads) */
@@ -261,6 +357,22 @@ typedef struct refiner {
     uint8_t *piece_refined;
     size_t cap_piece, cap_piece_refined;
 } refiner;
+
+/* as_rule1_violation with the refiner's pair cache (serial parts only: the pairs solved
+ * are kept). */
+static double rule1_cached(refiner *R, int32_t v, const as_rfacet *f, int *cause,
+                           anistar_status *err) {
+    int why;
+    as_gnew fresh;
+    double viol = rule1_local(R->ss, R->ss->ctx, R->prm, f, &why, err, &R->gc, &fresh);
+    if (*err != ANISTAR_OK) return 0;
+    for (int k = 0; k < fresh.n; k++)
+        gcache_put(R->ctx, &R->gc, fresh.p[k].a, fresh.p[k].b, fresh.p[k].g);
+    viol = rule1_feature(R->ss, v, f, viol, &why, err);
+    if (*err != ANISTAR_OK) return 0;
+    if (cause) *cause = why;
+    return viol;
+}
 
 /*
  * Whether star v needs as_starset_verify_zones: every facet of its piece (the sites
@@ -345,6 +457,7 @@ typedef struct as_evpre {
     anistar_status err;
     double v1, v2;
     as_ftab_entry *te; /* the facet's table entry (the table does not move while draining) */
+    as_gnew gn;        /* the pairs rule 1 solved (kept by the serial part) */
 } as_evpre;
 
 static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx) {
@@ -357,7 +470,9 @@ static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx
     d->i = as_star_find(st, e->g);
     if (d->i < 0) return ANISTAR_OK;
     const as_rfacet *f = &st->rf[d->i];
-    d->v1 = (f->queued & 1) ? 0 : rule1_local(ss, tctx, R->prm, f, &d->why, &d->err);
+    d->gn.n = 0;
+    d->v1 = (f->queued & 1) ? 0
+                            : rule1_local(ss, tctx, R->prm, f, &d->why, &d->err, &R->gc, &d->gn);
     d->v2 = (f->queued & 2) ? 0 : as_rule2_violation(ss, R->prm, e->star, f);
     d->te = as_starset_lookup(ss, as_facet_key(f->g));
     return ANISTAR_OK;
@@ -389,10 +504,13 @@ static anistar_status drain(refiner *R) {
             double v1;
             if (pre && R->evpre[k].err == ANISTAR_OK) {
                 int why = R->evpre[k].why;
+                const as_gnew *gn = &R->evpre[k].gn;
+                for (int j = 0; j < gn->n; j++)
+                    gcache_put(R->ctx, &R->gc, gn->p[j].a, gn->p[j].b, gn->p[j].g);
                 s = ANISTAR_OK;
                 v1 = rule1_feature(ss, e->star, f, R->evpre[k].v1, &why, &s);
             } else {
-                v1 = as_rule1_violation(ss, R->prm, e->star, f, NULL, &s);
+                v1 = rule1_cached(R, e->star, f, NULL, &s);
             }
             if (s != ANISTAR_OK) return s;
             if (v1 > 0) {
@@ -1086,7 +1204,7 @@ static anistar_status next_job(refiner *R, int *rule, int32_t *star, as_rfacet *
         while (as_queue_pop(&R->q[k], &e)) {
             if (!take_entry(R, k, &e, star, fout)) continue;
             if (k < 2) {
-                double viol = k == 0 ? as_rule1_violation(ss, R->prm, *star, fout, cause, &s)
+                double viol = k == 0 ? rule1_cached(R, *star, fout, cause, &s)
                                      : as_rule2_violation(ss, R->prm, *star, fout);
                 if (k == 0 && s != ANISTAR_OK) return s;
                 if (viol <= 0) continue;
@@ -1203,7 +1321,7 @@ static anistar_status bviol_task(void *arg, int32_t k, int t, anistar_context *t
     as_bjob *J = &R->jobs[k];
     anistar_status err = ANISTAR_OK;
     if (J->rule == JOB_RULE1)
-        J->viol = rule1_local(R->ss, tctx, R->prm, &J->f, &J->why, &err);
+        J->viol = rule1_local(R->ss, tctx, R->prm, &J->f, &J->why, &err, &R->gc, NULL);
     else
         J->viol = as_rule2_violation(R->ss, R->prm, J->v, &J->f);
     return err;
@@ -1339,7 +1457,7 @@ static anistar_status requeue_rule1(refiner *R, int32_t v) {
         for (int32_t i = 0; i < st->nrf; i++) {
             as_rfacet *f = &st->rf[i];
             if (f->queued & 1) continue;
-            double v1 = as_rule1_violation(ss, R->prm, v, f, NULL, &s);
+            double v1 = rule1_cached(R, v, f, NULL, &s);
             if (s != ANISTAR_OK) return s;
             if (v1 <= 0) continue;
             as_qentry q = {v1, as_facet_key(f->g), v};
@@ -1799,6 +1917,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     double t2 = now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
+    gcache_free(ctx, &R.gc);
     as_free(ctx, R.evpre, R.cap_evpre * sizeof *R.evpre);
     as_free(ctx, R.pcand, R.cap_pcand * sizeof *R.pcand);
     for (size_t j = 0; j < R.cap_jobs; j++) as_bpoint_free(ctx, &R.jobs[j].b);

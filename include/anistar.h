@@ -216,7 +216,8 @@ ANISTAR_API anistar_status anistar_tensor_sqrt(anistar_context *ctx, const doubl
  * context and record their error messages there, so (as every object of a context) a
  * surface is queried from one thread at a time through this API. The surface itself is
  * never modified by a query (the mesher queries one surface from several threads, each
- * with its own context).
+ * with its own context); the first sample of S taken for it (by a metric's defaults or a
+ * mesher) is kept in it for the next ones (a few MB at most, freed with the surface).
  */
 typedef struct anistar_surface anistar_surface;
 

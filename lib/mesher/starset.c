@@ -502,8 +502,10 @@ anistar_status as_starset_init_threads(as_starset *ss, anistar_context *ctx,
     ss->n = 8;
     ss->first_site = 8;
     if ((s = as_kdtree_new(ctx, &ss->kd)) != ANISTAR_OK) return s;
-    /* design: one analysis of S for the three samples of the run's start (feature points,
-     * estimate, initial sites); freed once the initial sites are in (refine.c) */
+    /* design: the three samples of the run's start (feature points, estimate, initial
+     * sites) draw from the surface's one analysis of S (as_surface_sample: made by the
+     * first sample, usually the metric's defaults, and kept in the surface); the sampler
+     * only brings the pool to the crossings */
     if ((s = as_sampler_new(ctx, surf, ss->pool, &ss->sampler)) != ANISTAR_OK) return s;
     if ((s = as_feature_build(ctx, surf, ss->sampler, ss->pool, &ss->feat)) != ANISTAR_OK) return s;
     ss->alpha = AS_FEATURE_ALPHA;

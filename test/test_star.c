@@ -428,6 +428,107 @@ static void test_fan_closed(void **state) {
     assert_false(as_star_fan_closed(f, 4, 0)); /* a cycle and a stray facet */
 }
 
+/* The definition, independently: every facet holds v, every other vertex of the facets
+ * lies on exactly two of them, and the link graph (one edge per facet) is connected. */
+static int fan_closed_reference(const as_rfacet *f, int32_t n, as_gid v) {
+    if (n < 3) return 0;
+    as_gid a[128], b[128];
+    for (int32_t i = 0; i < n; i++) {
+        int m = 0, hv = 0;
+        for (int k = 0; k < 3; k++) {
+            if (f[i].g[k] == v) hv = 1;
+            else if (m < 2) (m++ == 0 ? a : b)[i] = f[i].g[k];
+            else return 0;
+        }
+        if (!hv || m != 2) return 0;
+    }
+    for (int32_t i = 0; i < n; i++) {
+        const as_gid x[2] = {a[i], b[i]};
+        for (int s = 0; s < 2; s++) {
+            int deg = 0;
+            for (int32_t j = 0; j < n; j++) deg += (a[j] == x[s]) + (b[j] == x[s]);
+            if (deg != 2) return 0;
+        }
+    }
+    /* connected: grow from facet 0 through shared link vertices */
+    int reach[128] = {0}, grew = 1, cnt = 1;
+    reach[0] = 1;
+    while (grew) {
+        grew = 0;
+        for (int32_t i = 0; i < n; i++) {
+            if (reach[i]) continue;
+            for (int32_t j = 0; j < n && !reach[i]; j++)
+                if (reach[j] && (a[i] == a[j] || a[i] == b[j] || b[i] == a[j] || b[i] == b[j])) {
+                    reach[i] = 1;
+                    cnt++;
+                    grew = 1;
+                }
+        }
+    }
+    return cnt == n;
+}
+
+static int cmp_rfacet(const void *x, const void *y) {
+    const as_rfacet *p = x, *q = y;
+    for (int k = 0; k < 3; k++)
+        if (p->g[k] != q->g[k]) return p->g[k] < q->g[k] ? -1 : 1;
+    return 0;
+}
+
+/* as_star_fan_closed against the definition on random links (both of its paths: up to
+ * 48 facets sorted, beyond scanned): cycles of 3 to 100 facets with shuffled labels and
+ * v anywhere among them, and the same broken (a facet dropped, two cycles, a chord, a
+ * facet without v, a vertex repeated). */
+static void test_fan_closed_random(void **state) {
+    (void)state;
+    tu_rng r = {99};
+    long closed = 0, open = 0;
+    for (int trial = 0; trial < 4000; trial++) {
+        int32_t len = 3 + (int32_t)(tu_rng_u64(&r) % 98);
+        as_gid lab[128];
+        for (int32_t i = 0; i < len + 2; i++) lab[i] = 10 + 3 * i;
+        for (int32_t i = len + 1; i > 0; i--) { /* shuffle the labels */
+            int32_t j = (int32_t)(tu_rng_u64(&r) % (uint64_t)(i + 1));
+            as_gid t = lab[i];
+            lab[i] = lab[j];
+            lab[j] = t;
+        }
+        const as_gid v = lab[len + 1];
+        as_rfacet f[130];
+        memset(f, 0, sizeof f);
+        int32_t n = 0;
+        int split = (int)(tu_rng_u64(&r) % 6), cut = len >= 6 ? len / 2 : 0;
+        for (int32_t i = 0; i < len; i++) {
+            as_gid x = lab[i], y = lab[(i + 1) % len];
+            if (split == 1 && cut && i == cut - 1) y = lab[0];    /* two cycles */
+            if (split == 1 && cut && i == len - 1) x = lab[cut];
+            f[n].g[0] = v;
+            f[n].g[1] = x;
+            f[n].g[2] = y;
+            n++;
+        }
+        if (split == 2) n--;                                    /* a facet dropped */
+        if (split == 3 && len >= 4) {                           /* a chord */
+            f[n].g[0] = v;
+            f[n].g[1] = lab[0];
+            f[n].g[2] = lab[2];
+            n++;
+        }
+        if (split == 4) f[tu_rng_u64(&r) % (uint64_t)n].g[0] = lab[len]; /* without v */
+        if (split == 5 && n >= 4) f[1].g[1] = f[3].g[1];        /* a vertex repeated */
+        for (int32_t i = 0; i < n; i++) as_sort_gid3(f[i].g);
+        qsort(f, (size_t)n, sizeof *f, cmp_rfacet);
+        int32_t m = 0; /* unique triples, as a star's facets are */
+        for (int32_t i = 0; i < n; i++)
+            if (m == 0 || cmp_rfacet(&f[m - 1], &f[i]) != 0) f[m++] = f[i];
+        int want = fan_closed_reference(f, m, v);
+        assert_int_equal(as_star_fan_closed(f, m, (int32_t)v), want);
+        if (want) closed++;
+        else open++;
+    }
+    assert_true(closed > 500 && open > 500); /* both answers exercised */
+}
+
 /* Random insertion sequences into a star set: after each insertion the table equals a
  * full rescan of every star (as_starset_check_table). */
 static void test_facet_table_vs_rescan(void **state) {
@@ -513,6 +614,7 @@ static void test_corners_generic(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fan_closed),
+        cmocka_unit_test(test_fan_closed_random),
         cmocka_unit_test(test_packed_star_is_its_del3),
         cmocka_unit_test(test_corners_generic),
         cmocka_unit_test(test_restricted_vs_brute_force),

@@ -60,6 +60,25 @@ static int inside_unit(const double x[3]) {
     return x[0] * x[0] + x[1] * x[1] + x[2] * x[2] < 1.0;
 }
 
+/* n points (malloc'd, ids 0..n-1): the 8 corners of the box [-2.5, 2.5]^3, then random
+ * points of the unit sphere. */
+static void sphere_sites(tu_rng *r, int32_t n, double **xyz_out, int64_t **ids_out) {
+    double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
+    int64_t *ids = malloc((size_t)n * sizeof *ids);
+    assert_non_null(xyz);
+    assert_non_null(ids);
+    for (int32_t c = 0; c < 8; c++) {
+        for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 2.5 : -2.5;
+        ids[c] = c;
+    }
+    for (int32_t i = 8; i < n; i++) {
+        sphere_point(r, xyz + 3 * i);
+        ids[i] = i;
+    }
+    *xyz_out = xyz;
+    *ids_out = ids;
+}
+
 /*
  * Brute force: the facets incident to site v (index iv in pts) of the Delaunay
  * triangulation of F_v {corners, sites}, built from scratch by bulk insertion, whose two
@@ -111,16 +130,9 @@ static void test_restricted_vs_brute_force(void **state) {
     for (int trial = 0; trial < 24; trial++) {
         int32_t nsites = 8 + (int32_t)(tu_rng_u64(&r) % 40);
         int32_t n = 8 + nsites;
-        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
-        int64_t *ids = malloc((size_t)n * sizeof *ids);
-        for (int32_t c = 0; c < 8; c++) {
-            for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 2.5 : -2.5;
-            ids[c] = c;
-        }
-        for (int32_t i = 8; i < n; i++) {
-            sphere_point(&r, xyz + 3 * i);
-            ids[i] = i;
-        }
+        double *xyz;
+        int64_t *ids;
+        sphere_sites(&r, n, &xyz, &ids);
         as_metric_frame mf;
         random_frame(&r, trial < 8 ? 1.0 + 1e-9 : 4.0, &mf);
         /* half the trials through the surface memo (star.h, as_star_memo) */
@@ -191,16 +203,9 @@ static void test_probe_vs_brute_force(void **state) {
     for (int trial = 0; trial < 24; trial++) {
         int32_t nsites = 10 + (int32_t)(tu_rng_u64(&r) % 60);
         int32_t n = 8 + nsites;
-        double *xyz = malloc(3 * (size_t)n * sizeof *xyz);
-        int64_t *ids = malloc((size_t)n * sizeof *ids);
-        for (int32_t c = 0; c < 8; c++) {
-            for (int k = 0; k < 3; k++) xyz[3 * c + k] = (c >> k) & 1 ? 2.5 : -2.5;
-            ids[c] = c;
-        }
-        for (int32_t i = 8; i < n; i++) {
-            sphere_point(&r, xyz + 3 * i);
-            ids[i] = i;
-        }
+        double *xyz;
+        int64_t *ids;
+        sphere_sites(&r, n, &xyz, &ids);
         as_metric_frame mf;
         random_frame(&r, trial < 6 ? 1.0 + 1e-9 : 4.0, &mf);
         as_star_env env = {ctx, s, xyz, 0, trial % 2};

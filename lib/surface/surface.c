@@ -2778,7 +2778,7 @@ done:
 /* ---- the analysis kept in the surface: samples of several sizes from one ------------ */
 
 /* What sm_sample needs of an analysis: the crossing records (sorted by component), the
- * components' areas and the grid spacing. About 64 bytes per grid edge crossing S (the
+ * components' areas and the grid spacing. 72 bytes per grid edge crossing S (the
  * grid values and classes, 45 bytes per node, 12 MB, are freed after the analysis). */
 struct as_sbasis {
     sm_rec *rec;

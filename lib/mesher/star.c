@@ -618,8 +618,11 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         }
         st->rf[j + 1] = x;
     }
-    st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
-    as_star_rezone(st, env->xyz, mf);
+    /* a probe asks only for the triples: its copy of the star is dropped */
+    if (!sc->probe) {
+        st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
+        as_star_rezone(st, env->xyz, mf);
+    }
     /* the fresh marks served this update */
     for (int32_t t = 0; t < d->nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
     return ANISTAR_OK;

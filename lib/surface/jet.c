@@ -349,6 +349,13 @@ static inline void bl_add(const as_blend *b, size_t v, double d2, double d02, do
     *wsum += w;
 }
 
+/* The squared distance from p to the slab of grid cells k along axis i (0 inside it). */
+static inline double bl_gap2(const as_blend *b, int i, int32_t k, const double p[3]) {
+    const double lo = b->lo[i] + b->cell * (double)k, hi = lo + b->cell;
+    const double g = p[i] < lo ? lo - p[i] : p[i] > hi ? p[i] - hi : 0;
+    return g * g;
+}
+
 /* Most grid cells one query visits before using a kd-tree radius query instead (points
  * far from the vertices, whose cutoff ball is large). */
 #define BL_MAX_CELLS 512
@@ -392,22 +399,14 @@ anistar_status as_blend_eval(anistar_context *ctx, const as_blend *b, const doub
          * 1e-9 cells against the rounding of both); on a surface about a quarter of the
          * 27 cells around p are skipped so */
         const double R2 = R * R;
-        double dz[64], dy[64], dx[64]; /* per cell index along an axis: its squared gap */
         int32_t c[3];
-        for (int i = 0; i < 3; i++) {
-            double *d = i == 0 ? dx : i == 1 ? dy : dz;
-            for (int32_t k = c0[i]; k <= c1[i] && k - c0[i] < 64; k++) {
-                double lo = b->lo[i] + b->cell * (double)k, hi = lo + b->cell;
-                double g = p[i] < lo ? lo - p[i] : p[i] > hi ? p[i] - hi : 0;
-                d[k - c0[i]] = g * g;
-            }
-        }
-        const int gaps = c1[0] - c0[0] < 64 && c1[1] - c0[1] < 64 && c1[2] - c0[2] < 64;
-        for (c[2] = c0[2]; c[2] <= c1[2]; c[2]++)
-            for (c[1] = c0[1]; c[1] <= c1[1]; c[1]++)
+        for (c[2] = c0[2]; c[2] <= c1[2]; c[2]++) {
+            const double gz = bl_gap2(b, 2, c[2], p);
+            for (c[1] = c0[1]; c[1] <= c1[1]; c[1]++) {
+                const double gyz = gz + bl_gap2(b, 1, c[1], p);
+                if (gyz > R2) continue;
                 for (c[0] = c0[0]; c[0] <= c1[0]; c[0]++) {
-                    if (gaps && dx[c[0] - c0[0]] + dy[c[1] - c0[1]] + dz[c[2] - c0[2]] > R2)
-                        continue;
+                    if (gyz + bl_gap2(b, 0, c[0], p) > R2) continue;
                     const bl_cell *e = bl_find(b, c);
                     if (!e) continue;
                     for (uint32_t i = 0; i < e->count; i++) {
@@ -415,6 +414,8 @@ anistar_status as_blend_eval(anistar_context *ctx, const as_blend *b, const doub
                         bl_add(b, v, kd_d2(b->xyz + 3 * v, p), d02, limit, acc, &wsum);
                     }
                 }
+            }
+        }
     } else {
         anistar_context *cx = ctx ? ctx : b->ctx;
         as_idlist list = {0};

@@ -297,7 +297,9 @@ typedef struct star_work {
     int32_t *found;       /* 4 per restricted facet: sorted global ids, index into fdir */
     double *fdir;         /* 3 per restricted facet: its dual segment, inside end to outside */
     size_t cap_found;
-    double *balls;        /* 4 per tet around the vertex: circumcenter, squared radius */
+    double *balls;        /* 5 per tet around the vertex (ball_sort): 2 u (u = its
+                             circumcenter - F x_i), 1e-9 |u|^2, 4 |u|^2 (1 + 1e-6); sorted
+                             by radius, largest first */
     size_t cap_balls;
     as_kdtree *kd;        /* the output vertices, by global id (candidates by box) */
     as_idlist ids;        /* a box query's result */
@@ -426,6 +428,24 @@ static int unsampled_speck(anistar_context *ctx, const as_surface *s, star_work 
     return 0;
 }
 
+/* Balls by their stop bound (their radius), largest first. */
+static int cmp_ball(const void *a, const void *b) {
+    double x = ((const double *)a)[4], y = ((const double *)b)[4];
+    return (x < y) - (x > y);
+}
+
+/* Whether z (= F x_j - F x_i, |z|^2 = zz) is in (or on, within the slack) one of the nb
+ * sorted balls: z . a_b + s_b >= zz, i.e. |z - u_b|^2 <= (1 + 1e-9) |u_b|^2. A ball of
+ * radius below |z| / 2 cannot hold it (nor any after it). */
+static int in_some_ball(const star_work *w, size_t nb, const double z[3], double zz) {
+    const double *b = w->balls;
+    for (size_t q = 0; q < nb && !(zz > b[5 * q + 4]); q++) {
+        const double *a = b + 5 * q;
+        if ((z[0] * a[0] + z[1] * a[1]) + (z[2] * a[2] + a[3]) >= zz) return 1;
+    }
+    return 0;
+}
+
 /* Check the star of output vertex i (see mesh_check.h). */
 static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, int32_t nextra,
                       const as_trimesh *m, const int32_t *vt_start, const int32_t *vt_tris,
@@ -502,20 +522,25 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         size_t nb = buf->n;
         if (nb > w->cap_balls) {
             w->cap_balls = 2 * nb;
-            w->balls = realloc(w->balls, 4 * w->cap_balls * sizeof *w->balls);
+            w->balls = realloc(w->balls, 5 * w->cap_balls * sizeof *w->balls);
             assert_non_null(w->balls);
         }
         double reach = 0;
         int bounded = 1;
+        const double *yv = as_del3_point(d, v);
         for (size_t q = 0; q < nb && bounded; q++) {
-            double *c = w->balls + 4 * q, e[3];
+            double c[3];
             if (as_del3_circumcenter(d, buf->a[q], c) != 0) {
                 bounded = 0; /* an infinite tet: v is on the hull of the subset */
                 break;
             }
-            sub3(c, as_del3_point(d, v), e);
-            c[3] = dot3(e, e);
-            if (4 * c[3] > reach) reach = 4 * c[3];
+            double *b = w->balls + 5 * q, u[3];
+            sub3(c, yv, u);
+            double r2 = dot3(u, u);
+            for (int h = 0; h < 3; h++) b[h] = 2 * u[h];
+            b[3] = 1e-9 * r2;
+            b[4] = 4 * r2 * (1 + 1e-6);
+            if (4 * r2 > reach) reach = 4 * r2;
         }
         if (!bounded) {
             /* twice as many vertices: the nearest of those left out, by a scan (rare: a
@@ -533,37 +558,45 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             if (v < 0) return;
             continue;
         }
-        /* the vertices left out that lie in (or on) a ball join the selection (slack 1e-9
-         * for the rounding of the circumcenters and distances) and are inserted: the
-         * triangulation is the same as a rebuild with them (Delaunay with symbolic
-         * perturbation is unique), then the certificate is checked again */
+        /* the balls as z . a_b + s_b >= |z|^2 for z = F x_j - F x_i: a_b = 2 u_b (u_b the
+         * center relative to F x_i, |u_b| the radius), s_b = 1e-9 |u_b|^2 (the slack of
+         * 1e-9 on the squared radius, for the rounding of the circumcenters and
+         * distances); largest first: a point with |z|^2 > 4 |u_b|^2 (1 + 1e-6) is in no
+         * ball from b on */
+        qsort(w->balls, nb, 5 * sizeof *w->balls, cmp_ball);
+        /* the vertices left out that lie in (or on) a ball join the selection and are
+         * inserted: the triangulation is the same as a rebuild with them (Delaunay with
+         * symbolic perturbation is unique), then the certificate is checked again */
         size_t nviol = 0;
         ball_candidates(ctx, w, &mf, xi, sqrt(reach));
         /* the candidates: the vertices in the box of the reach, then the poles left out */
         for (size_t q = 0; q < w->ids.n + (size_t)(nextra - ncorner); q++) {
             int32_t j = q < w->ids.n ? w->ids.ids[q] : ncorner + (int32_t)(q - w->ids.n);
             if (w->mark[j] == (int64_t)i) continue;
-            double d2 = mdist2(&mf, w, (size_t)j, yi);
-            if (d2 > reach * (1 + 1e-9)) continue;
-            double y[3], e[3];
+            double y[3], z[3];
             as_metric_apply(&mf, w->pts + 3 * (size_t)j, y);
-            for (size_t b = 0; b < nb; b++) {
-                sub3(y, w->balls + 4 * b, e);
-                if (dot3(e, e) <= w->balls[4 * b + 3] * (1 + 1e-9)) {
-                    w->order[k + nviol++] = j;
-                    w->mark[j] = (int64_t)i;
-                    break;
-                }
+            sub3(y, yv, z);
+            double zz = dot3(z, z);
+            if (zz > reach * (1 + 1e-6)) continue;
+            if (in_some_ball(w, nb, z, zz)) {
+                w->order[k + nviol++] = j;
+                w->mark[j] = (int64_t)i;
             }
         }
         if (nviol == 0) break;
-        for (size_t q = k; q < k + nviol; q++) {
-            int32_t j = w->order[q], vx;
-            int rc = as_del3_insert_frame(d, &mf, w->pts + 3 * (size_t)j, j, &vx);
-            if (rc != ANISTAR_OK) {
-                mc_fail(r, "vertex %zu: inserting vertex %d failed (%d)", i, (int)j, rc);
-                return;
-            }
+        /* in one bulk insertion (Hilbert order: short walks) */
+        for (size_t q = 0; q < nviol; q++) {
+            int32_t j = w->order[k + q];
+            memcpy(w->sel + 3 * q, w->pts + 3 * (size_t)j, 3 * sizeof(double));
+            w->gid[q] = j;
+        }
+        int32_t ndup = 0;
+        anistar_status rc = as_del3_insert_points(d, w->sel, w->gid, (int32_t)nviol, &mf, NULL,
+                                                  &ndup);
+        if (rc != ANISTAR_OK || ndup != 0) {
+            mc_fail(r, "vertex %zu: inserting %zu vertices failed: %s", i, nviol,
+                    anistar_last_error(ctx));
+            return;
         }
         k += nviol;
         if (k > r->star_points_max) r->star_points_max = k;
@@ -717,7 +750,7 @@ void mc_check_stars(anistar_context *ctx, const as_surface *s, const double *ext
     w.found = xmalloc(4 * w.cap_found * sizeof *w.found);
     w.fdir = xmalloc(3 * w.cap_found * sizeof *w.fdir);
     w.cap_balls = 64;
-    w.balls = xmalloc(4 * w.cap_balls * sizeof *w.balls);
+    w.balls = xmalloc(5 * w.cap_balls * sizeof *w.balls);
     w.kd = NULL;
     int32_t *vid = xmalloc(nv * sizeof *vid);
     for (size_t j = 0; j < nv; j++) vid[j] = nextra + (int32_t)j;

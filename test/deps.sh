@@ -2,7 +2,9 @@
 # Make sure the test dependencies (GMP: exact oracle; cmocka: runner; pkg-config: the
 # install test) are installed.
 # Installs them with apt-get when they are missing and we run as root; otherwise prints
-# the exact command and fails.
+# the exact command and fails. Debian's python3-meshio (test_interop's independent reader
+# of our files) is installed the same way when it is missing and we may; without it that
+# test says it cannot run and how to install it, and the rest runs.
 set -u
 have() { printf '#include <%s>\n' "$1" | ${CC:-cc} -E -x c - >/dev/null 2>&1; }
 missing=""
@@ -13,8 +15,20 @@ have_cmocka() {
 }
 have_cmocka || missing="$missing libcmocka-dev"
 command -v pkg-config >/dev/null 2>&1 || missing="$missing pkg-config"
+can_apt=0
+[ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && can_apt=1
+if ! /usr/bin/python3 -c 'import meshio' >/dev/null 2>&1; then
+    if [ "$can_apt" = 1 ]; then
+        echo "deps: installing python3-meshio with apt-get" >&2
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-meshio; } >&2 ||
+            echo "deps: apt-get could not install python3-meshio; test_interop will not run" >&2
+    else
+        echo "deps: python3-meshio is missing (test_interop will not run); install it with:" >&2
+        echo "    sudo apt-get install -y python3-meshio" >&2
+    fi
+fi
 [ -z "$missing" ] && exit 0
-if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+if [ "$can_apt" = 1 ]; then
     echo "deps: installing$missing with apt-get" >&2
     { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $missing; } >&2 \
         || { echo "deps: apt-get failed; run: apt-get install -y$missing" >&2; exit 1; }

@@ -93,6 +93,27 @@ static void as_vec3_canonical_sign(double *v) {
  *   4. Sort ascending (stable), scale w back by s, canonical signs, right-handed basis
  *      (negate vec2 when det V < 0).
  */
+/* 2^k for -1022 <= k <= 1023, exactly (its bits: ldexp(1.0, k) without the call). */
+static inline double pow2i(int k) {
+    uint64_t b = (uint64_t)(k + 1023) << 52;
+    double x;
+    memcpy(&x, &b, sizeof x);
+    return x;
+}
+
+/* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1): from its bits when x
+ * is normal. */
+static inline int exponent_of(double x) {
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int e = (int)((b >> 52) & 0x7ff);
+    if (e == 0) {
+        (void)frexp(x, &e);
+        return e;
+    }
+    return e - 1022;
+}
+
 int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
     if (!as_sym3_finite(a)) {
         for (int i = 0; i < 3; i++) w[i] = NAN;
@@ -109,11 +130,10 @@ int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
         memcpy(vec, v, sizeof v);
         return 0;
     }
-    int ex;
-    (void)frexp(amax, &ex);
+    int ex = exponent_of(amax);
     /* Scale by 2^-ex as two multiplications by representable powers of two (|ex| <= 1074):
      * exact except for entries that become subnormal, i.e. below 2^-1022 |A|. */
-    double dn1 = ldexp(1.0, -ex / 2), dn2 = ldexp(1.0, -ex - (-ex / 2));
+    double dn1 = pow2i(-ex / 2), dn2 = pow2i(-ex - (-ex / 2));
     /* d: the diagonal; o[k]: the off-diagonal entry of pair k (a12, a13, a23). */
     double d[3] = {a[0] * dn1 * dn2, a[3] * dn1 * dn2, a[5] * dn1 * dn2};
     double o[3] = {a[1] * dn1 * dn2, a[2] * dn1 * dn2, a[4] * dn1 * dn2};
@@ -167,7 +187,7 @@ int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
     }
 
     /* Sort ascending (insertion sort, stable), carrying the columns of V. */
-    double up1 = ldexp(1.0, ex / 2), up2 = ldexp(1.0, ex - ex / 2);
+    double up1 = pow2i(ex / 2), up2 = pow2i(ex - ex / 2);
     int idx[3] = {0, 1, 2};
     for (int i = 1; i < 3; i++) {
         int j = i;

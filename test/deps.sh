@@ -15,25 +15,27 @@ have_cmocka() {
 }
 have_cmocka || missing="$missing libcmocka-dev"
 command -v pkg-config >/dev/null 2>&1 || missing="$missing pkg-config"
-can_apt=0
-[ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && can_apt=1
-if ! /usr/bin/python3 -c 'import meshio' >/dev/null 2>&1; then
-    if [ "$can_apt" = 1 ]; then
-        echo "deps: installing python3-meshio with apt-get" >&2
-        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-meshio; } >&2 ||
-            echo "deps: apt-get could not install python3-meshio; test_interop will not run" >&2
-    else
-        echo "deps: python3-meshio is missing (test_interop will not run); install it with:" >&2
-        echo "    sudo apt-get install -y python3-meshio" >&2
+optional="" # wanted, not required: test_interop says it cannot run without it
+/usr/bin/python3 -c 'import meshio' >/dev/null 2>&1 || optional="python3-meshio"
+[ -z "$missing$optional" ] && exit 0
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    echo "deps: installing$missing${optional:+ $optional} with apt-get" >&2
+    apt-get update -qq >&2 || { echo "deps: apt-get update failed" >&2; [ -z "$missing" ]; exit; }
+    if [ -n "$missing" ]; then
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $missing >&2 ||
+            { echo "deps: apt-get failed; run: apt-get install -y$missing" >&2; exit 1; }
     fi
-fi
-[ -z "$missing" ] && exit 0
-if [ "$can_apt" = 1 ]; then
-    echo "deps: installing$missing with apt-get" >&2
-    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $missing; } >&2 \
-        || { echo "deps: apt-get failed; run: apt-get install -y$missing" >&2; exit 1; }
+    if [ -n "$optional" ]; then
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $optional >&2 ||
+            echo "deps: apt-get could not install $optional; test_interop will not run" >&2
+    fi
     exit 0
 fi
+[ -n "$optional" ] && {
+    echo "deps: $optional is missing (test_interop will not run); install it with:" >&2
+    echo "    sudo apt-get install -y $optional" >&2
+}
+[ -z "$missing" ] && exit 0
 echo "deps: missing$missing. Install them with:" >&2
 echo "    sudo apt-get install -y$missing" >&2
 exit 1

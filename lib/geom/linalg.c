@@ -59,6 +59,27 @@ static void as_vec3_canonical_sign(double *v) {
     }
 }
 
+/* 2^k for -1022 <= k <= 1023, exactly (its bits: ldexp(1.0, k) without the call). */
+static inline double pow2i(int k) {
+    uint64_t b = (uint64_t)(k + 1023) << 52;
+    double x;
+    memcpy(&x, &b, sizeof x);
+    return x;
+}
+
+/* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1): from its bits when x
+ * is normal. */
+static inline int exponent_of(double x) {
+    uint64_t b;
+    memcpy(&b, &x, sizeof b);
+    int e = (int)((b >> 52) & 0x7ff);
+    if (e == 0) {
+        (void)frexp(x, &e);
+        return e;
+    }
+    return e - 1022;
+}
+
 /*
  * as_sym3_eigen — A = V diag(w) V^T for a symmetric 3x3 A (6 doubles).
  *
@@ -93,27 +114,6 @@ static void as_vec3_canonical_sign(double *v) {
  *   4. Sort ascending (stable), scale w back by s, canonical signs, right-handed basis
  *      (negate vec2 when det V < 0).
  */
-/* 2^k for -1022 <= k <= 1023, exactly (its bits: ldexp(1.0, k) without the call). */
-static inline double pow2i(int k) {
-    uint64_t b = (uint64_t)(k + 1023) << 52;
-    double x;
-    memcpy(&x, &b, sizeof x);
-    return x;
-}
-
-/* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1): from its bits when x
- * is normal. */
-static inline int exponent_of(double x) {
-    uint64_t b;
-    memcpy(&b, &x, sizeof b);
-    int e = (int)((b >> 52) & 0x7ff);
-    if (e == 0) {
-        (void)frexp(x, &e);
-        return e;
-    }
-    return e - 1022;
-}
-
 int as_sym3_eigen(const double a[6], double w[3], double vec[9]) {
     if (!as_sym3_finite(a)) {
         for (int i = 0; i < 3; i++) w[i] = NAN;

@@ -297,7 +297,7 @@ typedef struct star_work {
     int32_t *found;       /* 4 per restricted facet: sorted global ids, index into fdir */
     double *fdir;         /* 3 per restricted facet: its dual segment, inside end to outside */
     size_t cap_found;
-    double *balls;        /* 5 per tet around the vertex (ball_sort): 2 u (u = its
+    double *balls;        /* 5 per tet around the vertex (in_some_ball): 2 u (u = its
                              circumcenter - F x_i), 1e-9 |u|^2, 4 |u|^2 (1 + 1e-6); sorted
                              by radius, largest first */
     size_t cap_balls;
@@ -319,17 +319,22 @@ static void ball_candidates(anistar_context *ctx, star_work *w, const as_metric_
     assert_int_equal(as_kdtree_box_any(ctx, w->kd, lo, hi, 0, &w->ids), ANISTAR_OK);
 }
 
-/* Squared M distance from point j (global id: extra sites, then output vertices) to
- * yi = F x_i. */
-static double mdist2(const as_metric_frame *mf, const star_work *w, size_t j,
-                     const double yi[3]) {
-    double y[3], e[3];
+/* z = F x_j - yi for point j (global id: extra sites, then output vertices) and
+ * yi = F x_i; returns |z|^2, the squared M distance. */
+static double mdiff(const as_metric_frame *mf, const star_work *w, size_t j, const double yi[3],
+                    double z[3]) {
+    double y[3];
     as_metric_apply(mf, w->pts + 3 * j, y);
-    sub3(y, yi, e);
-    return dot3(e, e);
+    sub3(y, yi, z);
+    return dot3(z, z);
 }
 
-
+/* Squared M distance from point j to yi = F x_i. */
+static double mdist2(const as_metric_frame *mf, const star_work *w, size_t j,
+                     const double yi[3]) {
+    double z[3];
+    return mdiff(mf, w, j, yi, z);
+}
 
 /* Rebuild i's triangulation from the k selected points w->order[0..k) (global ids: the
  * extra sites, then the output vertices). Returns i's del3 vertex, or -1 on failure
@@ -527,7 +532,6 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         }
         double reach = 0;
         int bounded = 1;
-        const double *yv = as_del3_point(d, v);
         for (size_t q = 0; q < nb && bounded; q++) {
             double c[3];
             if (as_del3_circumcenter(d, buf->a[q], c) != 0) {
@@ -535,7 +539,7 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
                 break;
             }
             double *b = w->balls + 5 * q, u[3];
-            sub3(c, yv, u);
+            sub3(c, yi, u); /* yi: v's point in d, bit for bit (as_metric_apply both) */
             double r2 = dot3(u, u);
             for (int h = 0; h < 3; h++) b[h] = 2 * u[h];
             b[3] = 1e-9 * r2;
@@ -558,11 +562,8 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
             if (v < 0) return;
             continue;
         }
-        /* the balls as z . a_b + s_b >= |z|^2 for z = F x_j - F x_i: a_b = 2 u_b (u_b the
-         * center relative to F x_i, |u_b| the radius), s_b = 1e-9 |u_b|^2 (the slack of
-         * 1e-9 on the squared radius, for the rounding of the circumcenters and
-         * distances); largest first: a point with |z|^2 > 4 |u_b|^2 (1 + 1e-6) is in no
-         * ball from b on */
+        /* largest first (in_some_ball); the slack of 1e-9 on the squared radius is for
+         * the rounding of the circumcenters and distances */
         qsort(w->balls, nb, 5 * sizeof *w->balls, cmp_ball);
         /* the vertices left out that lie in (or on) a ball join the selection and are
          * inserted: the triangulation is the same as a rebuild with them (Delaunay with
@@ -573,10 +574,7 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
         for (size_t q = 0; q < w->ids.n + (size_t)(nextra - ncorner); q++) {
             int32_t j = q < w->ids.n ? w->ids.ids[q] : ncorner + (int32_t)(q - w->ids.n);
             if (w->mark[j] == (int64_t)i) continue;
-            double y[3], z[3];
-            as_metric_apply(&mf, w->pts + 3 * (size_t)j, y);
-            sub3(y, yv, z);
-            double zz = dot3(z, z);
+            double z[3], zz = mdiff(&mf, w, (size_t)j, yi, z);
             if (zz > reach * (1 + 1e-6)) continue;
             if (in_some_ball(w, nb, z, zz)) {
                 w->order[k + nviol++] = j;
@@ -595,7 +593,7 @@ static void check_one(anistar_context *ctx, const as_surface *s, star_work *w, i
                                                   &ndup);
         if (rc != ANISTAR_OK || ndup != 0) {
             mc_fail(r, "vertex %zu: inserting %zu vertices failed: %s", i, nviol,
-                    anistar_last_error(ctx));
+                    rc != ANISTAR_OK ? anistar_last_error(ctx) : "a duplicate point");
             return;
         }
         k += nviol;

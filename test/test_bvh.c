@@ -13,7 +13,11 @@
  *    icosphere (exact face-orientation oracle, |p| < r far from the surface, rays exactly
  *    through vertices), random voxel polycubes and a cube with integer coordinates (rays
  *    along axes and diagonals through vertices, edges and faces, points on the surface),
- *    a torus (analytic far from the surface);
+ *    a torus (analytic far from the surface); the same with the side grid (short segments
+ *    to grid nodes; nodes on the surface for the cube), default, coarse and fine;
+ *  - the crossing nearest a reference point (through the tree or the grid) against brute
+ *    force, bit for bit: random, short and long segments, through vertices, along edges,
+ *    between lattice points of polycubes;
  *  - invalid input, allocation-failure injection.
  */
 #include "test_util.h"
@@ -713,6 +717,52 @@ static void test_soup_queries(void **state) {
 }
 
 /* Convex polyhedron oracle: 1 inside, 0 outside, -1 on the boundary (exact). */
+/* as_bvh_segment_nearest against brute force: the least (|x - ref|^2, t, triangle id) over
+ * every triangle the segment meets, x computed as the function documents. */
+static void check_nearest(const as_bvh *b, const mesh *m, const double *a, const double *c,
+                          const double *ref) {
+    double best = INFINITY, bt = 0, bx[3] = {0, 0, 0};
+    int32_t btri = -1;
+    for (size_t t = 0; t < m->nt; t++) {
+        double par;
+        if (as_segment_triangle(a, c, tv(m, t, 0), tv(m, t, 1), tv(m, t, 2), &par) ==
+            AS_HIT_NONE)
+            continue;
+        double q[3];
+        for (int k = 0; k < 3; k++) q[k] = par == 1 ? c[k] : a[k] + par * (c[k] - a[k]);
+        double e0 = q[0] - ref[0], e1 = q[1] - ref[1], e2 = q[2] - ref[2];
+        double d2 = e0 * e0 + e1 * e1 + e2 * e2;
+        if (d2 < best || (d2 == best && (par < bt || (par == bt && (int32_t)t < btri)))) {
+            best = d2;
+            bt = par;
+            btri = (int32_t)t;
+            memcpy(bx, q, sizeof q);
+        }
+    }
+    double x[3] = {7, 7, 7};
+    int found = as_bvh_segment_nearest(b, a, c, ref, x);
+    assert_int_equal(found, btri >= 0);
+    if (found)
+        for (int k = 0; k < 3; k++) assert_true(x[k] == bx[k]);
+}
+
+/* A point of the line through a and c (parameter s, not necessarily in [0, 1]) moved off
+ * it by off in each coordinate: the reference points of the crossing queries. */
+static void line_ref(tu_rng *r, const double *a, const double *c, double off, double *ref) {
+    double s = tu_rng_range(r, -0.5, 1.5);
+    for (int k = 0; k < 3; k++) ref[k] = a[k] + s * (c[k] - a[k]) + off * tu_rng_range(r, -1, 1);
+}
+
+/* A second tree over m with the side grid of about max_nodes nodes (0: the default). */
+static as_bvh *grid_tree(anistar_context *ctx, const mesh *m, size_t max_nodes) {
+    as_bvh *g = NULL;
+    assert_int_equal(as_bvh_build_triangles(ctx, m->xyz, m->nv, m->tri, m->nt, &g), ANISTAR_OK);
+    assert_int_equal(as_bvh_side_grid(ctx, g, max_nodes), ANISTAR_OK);
+    assert_int_equal(as_bvh_side_grid(ctx, g, max_nodes), ANISTAR_OK); /* once only */
+    assert_int_equal(as_bvh_check(ctx, g), 0);
+    return g;
+}
+
 static int convex_oracle(const mesh *m, const double *p) {
     static const double o[3] = {0, 0, 0};
     int on = 0;
@@ -738,6 +788,8 @@ static void test_icosphere(void **state) {
     as_bvh *b = NULL;
     assert_int_equal(as_bvh_build_triangles(ctx, m.xyz, m.nv, m.tri, m.nt, &b), ANISTAR_OK);
     assert_int_equal(as_bvh_check(ctx, b), 0);
+    /* the side grid: default, coarse (cells of many triangles) and fine */
+    as_bvh *g[3] = {grid_tree(ctx, &m, 0), grid_tree(ctx, &m, 600), grid_tree(ctx, &m, 200000)};
     tu_rng r = {71};
     int seen[3] = {0};
     /* random points: exact convex oracle; far from the surface also |p| < R */
@@ -747,6 +799,7 @@ static void test_icosphere(void **state) {
         int want = convex_oracle(&m, p);
         int got = side_to_oracle(as_bvh_side(b, p));
         assert_int_equal(got, want);
+        for (int i = 0; i < 3; i++) assert_int_equal(side_to_oracle(as_bvh_side(g[i], p)), want);
         double l = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
         if (l < 0.95 * R) assert_int_equal(got, 1);
         if (l > R) assert_int_equal(got, 0);
@@ -766,6 +819,12 @@ static void test_icosphere(void **state) {
         assert_int_equal(side_to_oracle(as_bvh_side(b, q)), convex_oracle(&m, q));
         int we = convex_oracle(&m, e);
         assert_int_equal(side_to_oracle(as_bvh_side(b, e)), we);
+        for (int i = 0; i < 3; i++) {
+            assert_int_equal(as_bvh_side(g[i], u), 0);
+            assert_int_equal(side_to_oracle(as_bvh_side(g[i], p)), convex_oracle(&m, p));
+            assert_int_equal(side_to_oracle(as_bvh_side(g[i], q)), convex_oracle(&m, q));
+            assert_int_equal(side_to_oracle(as_bvh_side(g[i], e)), we);
+        }
         seen[we + 1]++;
         /* rays exactly through the vertex u: p = u/2 (inside) to 4u (outside) */
         for (int k = 0; k < 3; k++) {
@@ -796,6 +855,20 @@ static void test_icosphere(void **state) {
             c[k] = tu_rng_range(&r, -0.7, 0.7);
         }
         check_segment(ctx, b, &m, a, c, &hits, ref);
+        /* the crossing nearest a reference point, on the line or off it, and short
+         * segments (a few cells of the grids) as well as long ones */
+        double rp[3], a2[3], c2[3];
+        double f = it % 2 ? 1 : 0.02;
+        for (int k = 0; k < 3; k++) {
+            a2[k] = a[k];
+            c2[k] = a[k] + f * (c[k] - a[k]);
+        }
+        for (int j = 0; j < 3; j++) {
+            line_ref(&r, a2, c2, j == 2 ? 0.01 : 0, rp);
+            if (j == 1) memcpy(rp, a2, sizeof rp);
+            check_nearest(b, &m, a2, c2, rp);
+            for (int i = 0; i < 3; i++) check_nearest(g[i], &m, a2, c2, rp);
+        }
         /* closed mesh: the number of proper crossings of a generic segment has the parity
          * of inside(a) xor inside(c) */
         size_t proper;
@@ -806,6 +879,23 @@ static void test_icosphere(void **state) {
         }
         check_closest(b, &m, a);
     }
+    /* segments from the center through each vertex (crossings exactly at vertices, met
+     * by several triangles) and along edges */
+    for (size_t t = 0; t < m.nt; t += 7) {
+        const double *u = tv(&m, t, 0), *v = tv(&m, t, 1);
+        double a[3] = {0, 0, 0}, c[3], rp[3];
+        for (int k = 0; k < 3; k++) c[k] = 2 * u[k];
+        line_ref(&r, a, c, 0, rp);
+        check_nearest(b, &m, a, c, rp);
+        for (int i = 0; i < 3; i++) check_nearest(g[i], &m, a, c, rp);
+        for (int k = 0; k < 3; k++) {
+            a[k] = 2 * u[k] - v[k];
+            c[k] = 2 * v[k] - u[k];
+        }
+        check_nearest(b, &m, a, c, u);
+        for (int i = 0; i < 3; i++) check_nearest(g[i], &m, a, c, u);
+    }
+    for (int i = 0; i < 3; i++) as_bvh_free(ctx, g[i]);
     free(ref);
     as_bvh_hits_free(ctx, &hits);
     as_bvh_free(ctx, b);
@@ -840,6 +930,9 @@ static void test_voxels(void **state) {
         vox_mesh(&vx, &m);
         as_bvh *b = NULL;
         assert_int_equal(as_bvh_build_triangles(ctx, m.xyz, m.nv, m.tri, m.nt, &b), ANISTAR_OK);
+        /* side grids whose nodes fall on the lattice (the cube: on its faces, sides
+         * unknown) and off it */
+        as_bvh *g[2] = {grid_tree(ctx, &m, 0), grid_tree(ctx, &m, 777)};
         long L = (long)vx.s * (vx.G + 2) * 2;
         long lim = (long)vx.s * (vx.G / 2 + 1);
         for (long x = -lim; x <= lim; x++)
@@ -850,6 +943,8 @@ static void test_voxels(void **state) {
                     seen[want + 1]++;
                     double pd[3] = {(double)x, (double)y, (double)z};
                     assert_int_equal(side_to_oracle(as_bvh_side(b, pd)), want);
+                    for (int i = 0; i < 2; i++)
+                        assert_int_equal(side_to_oracle(as_bvh_side(g[i], pd)), want);
                     /* a few rays per point (all for the cube) */
                     int nd = (int)(sizeof ray_dirs / sizeof *ray_dirs);
                     for (int di = 0; di < nd; di++) {
@@ -872,6 +967,13 @@ static void test_voxels(void **state) {
             double ad[3], cd[3];
             to_d(a, ad);
             to_d(c, cd);
+            for (int j = 0; j < 3; j++) { /* references: lattice points of the segment's box */
+                double rp[3];
+                for (int k = 0; k < 3; k++)
+                    rp[k] = j == 0 ? ad[k] : j == 1 ? cd[k] : (double)((a[k] + c[k]) / 2);
+                check_nearest(b, &m, ad, cd, rp);
+                for (int i = 0; i < 2; i++) check_nearest(g[i], &m, ad, cd, rp);
+            }
             assert_int_equal(as_bvh_segment(ctx, b, ad, cd, &hits), ANISTAR_OK);
             size_t j = 0;
             for (size_t t = 0; t < m.nt; t++) {
@@ -890,6 +992,7 @@ static void test_voxels(void **state) {
             }
             assert_int_equal(hits.n, j);
         }
+        for (int i = 0; i < 2; i++) as_bvh_free(ctx, g[i]);
         as_bvh_free(ctx, b);
         mesh_free(&m);
         free(vx.filled);
@@ -911,6 +1014,7 @@ static void test_torus(void **state) {
     as_bvh *b = NULL;
     assert_int_equal(as_bvh_build_triangles(ctx, m.xyz, m.nv, m.tri, m.nt, &b), ANISTAR_OK);
     assert_int_equal(as_bvh_check(ctx, b), 0);
+    as_bvh *g = grid_tree(ctx, &m, 0);
     tu_rng r = {91};
     int n_in = 0, n_out = 0;
     for (int it = 0; it < 4000; it++) {
@@ -919,6 +1023,13 @@ static void test_torus(void **state) {
         p[2] = tu_rng_range(&r, -0.6, 0.6);
         double dist = sqrt(pow(sqrt(p[0] * p[0] + p[1] * p[1]) - R, 2) + p[2] * p[2]) - rr;
         int s = as_bvh_side(b, p);
+        assert_int_equal(as_bvh_side(g, p), s);
+        if (it % 8 == 0) { /* a segment through p, the crossing nearest p */
+            double c[3];
+            for (int k = 0; k < 3; k++) c[k] = p[k] + tu_rng_range(&r, -0.3, 0.3);
+            check_nearest(g, &m, p, c, p);
+            check_nearest(b, &m, p, c, p);
+        }
         if (fabs(dist) < 0.02) continue; /* chords: the polyhedron differs from the torus */
         assert_int_equal(s, dist < 0 ? 1 : -1);
         if (dist < 0) n_in++;
@@ -928,6 +1039,7 @@ static void test_torus(void **state) {
         assert_int_equal(as_bvh_ray_parity(b, p, q), dist < 0 ? 1 : 0);
     }
     assert_true(n_in > 500 && n_out > 500);
+    as_bvh_free(ctx, g);
     as_bvh_free(ctx, b);
     mesh_free(&m);
     anistar_context_free(ctx);
@@ -1068,6 +1180,18 @@ static void test_alloc_failure(void **state) {
                 assert_int_equal(ids.n, m.nt);
                 as_bvh_hits_free(ctx, &hits);
                 as_idlist_free(ctx, &ids);
+                if (!kind) { /* the side grid: failures leave the tree as it was */
+                    double p[3] = {0.1, 0.2, 0.3};
+                    for (long g = 0;; g++) {
+                        ta.fail_after = ta.count + g;
+                        anistar_status sg = as_bvh_side_grid(ctx, b, 0);
+                        ta.fail_after = -1;
+                        assert_int_equal(as_bvh_side(b, p), 1);
+                        if (sg == ANISTAR_OK) break;
+                        assert_int_equal(sg, ANISTAR_ENOMEM);
+                    }
+                    assert_int_equal(as_bvh_side(b, p), 1);
+                }
                 as_bvh_free(ctx, b);
             } else {
                 assert_int_equal(st, ANISTAR_ENOMEM);

@@ -10,7 +10,8 @@
  * every query uses an explicit stack, never recursion, and allocates nothing except to
  * grow the caller's output. A triangle tree stores a copy of each triangle's 9
  * coordinates in leaf order (exact copies: the exact predicates see the caller's doubles).
- * The tree is immutable after the build: several threads may query it at once.
+ * The tree is immutable after the build (and the optional side grid, as_bvh_side_grid):
+ * several threads may query it at once.
  *
  * Exactness. Every combinatorial decision on a triangle uses the signs of as_orient3d,
  * which are exact (2D orientations in a coordinate plane are computed exactly as
@@ -157,6 +158,17 @@ size_t as_bvh_segment_count(const as_bvh *b, const double a[3], const double c[3
                             size_t *proper);
 
 /*
+ * as_bvh_segment_nearest — of the triangles met by [a, b] (as as_bvh_segment), the contact
+ * point x = a + t (b - a) (x = b when t = 1) nearest ref: the least (|x - ref|^2, t,
+ * triangle id), the same point as scanning as_bvh_segment's list for the first strict
+ * minimum of the distance. Returns 1 (x set) or 0 (no triangle met). No allocation.
+ * Depth-first, nearer box first, pruning boxes farther from ref than the best contact so
+ * far (with a margin far above the rounding of x).
+ */
+int as_bvh_segment_nearest(const as_bvh *b, const double a[3], const double c[3],
+                           const double ref[3], double x[3]);
+
+/*
  * as_bvh_ray_parity — parity of the number of triangles crossed by [p, q'] (q symbolically
  * perturbed as in as_segment_triangle_sos): 0 or 1, or -1 when p lies on a triangle.
  * For a closed mesh and q not on it the parity is inside(p) xor inside(q), exactly.
@@ -170,6 +182,22 @@ int as_bvh_ray_parity(const as_bvh *b, const double p[3], const double q[3]);
  * nearest face in a slightly tilted direction (as_bvh_ray_parity, never undecided).
  */
 int as_bvh_side(const as_bvh *b, const double p[3]);
+
+/*
+ * as_bvh_side_grid — reference points for as_bvh_side and a faster as_bvh_segment_nearest
+ * on a triangle tree of a closed mesh: a regular grid of about max_nodes nodes (up to
+ * twice that; 0: 8 per triangle, at most 2^24) over the bounding box and one cell beyond
+ * it, each node's side decided once, exactly, and each cell's list of the triangles whose
+ * box meets it. Then as_bvh_side(p) takes the parity along the short segment from p to a
+ * corner of p's cell over that cell's triangles (the side of a point not on the mesh is a
+ * fact, so every answer is the one the long segment gives; nodes on a triangle are left
+ * out, and a query whose corners are all such takes the long segment), and a crossing
+ * query scans the cells along its segment outward from its reference point (the same
+ * answer as the tree's). Call it once, before the tree is shared between threads.
+ * ANISTAR_OK (also when the box is too flat or too small for a grid: none is made) or
+ * ANISTAR_ENOMEM (the tree is unchanged).
+ */
+anistar_status as_bvh_side_grid(anistar_context *ctx, as_bvh *b, size_t max_nodes);
 
 /*
  * as_bvh_closest — the triangle nearest to p and the nearest point c on it; returns the

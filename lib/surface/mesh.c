@@ -293,24 +293,7 @@ static anistar_status ms_crossing(anistar_context *ctx, const as_surface *s, con
     for (int i = 0; i < 3; i++)
         if (!isfinite(a[i]) || !isfinite(b[i]) || !isfinite(ref[i]))
             return as_fail(ctx, ANISTAR_EINVAL, "crossing: a point is not finite");
-    anistar_context *c = ctx ? ctx : s->ctx;
-    as_bvh_hits hits = {0};
-    if (as_bvh_segment(c, ms->bvh, a, b, &hits)) {
-        as_bvh_hits_free(c, &hits);
-        return as_fail(ctx, ANISTAR_ENOMEM, "crossing: out of memory");
-    }
-    double best = INFINITY;
-    for (size_t i = 0; i < hits.n; i++) {
-        double t = hits.h[i].t, q[3];
-        for (int k = 0; k < 3; k++) q[k] = t == 1 ? b[k] : a[k] + t * (b[k] - a[k]);
-        double d = v3_dist2(q, ref);
-        if (d < best) {
-            best = d;
-            memcpy(x, q, sizeof q);
-            *found = 1;
-        }
-    }
-    as_bvh_hits_free(c, &hits);
+    *found = as_bvh_segment_nearest(ms->bvh, a, b, ref, x);
     return ANISTAR_OK;
 }
 
@@ -730,6 +713,7 @@ anistar_status as_mesh_surface_create(anistar_context *ctx, const char *name, co
     }
     /* 3. spatial indexes; components and the orientation of nested ones */
     st = as_bvh_build_triangles(ctx, ms->xyz, ms->nv, ot, nt, &ms->bvh);
+    if (!st) st = as_bvh_side_grid(ctx, ms->bvh, 0); /* side(p) by short segments */
     if (!st) st = as_kdtree_build(ctx, ms->xyz, NULL, ms->nv, &ms->kd);
     if (!st) {
         components(ms);

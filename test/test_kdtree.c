@@ -2,7 +2,8 @@
  * test_kdtree — the kd-tree forest (lib/geom/kdtree.c): k-nearest, radius and box queries
  * equal brute force on many point distributions (uniform, clustered, duplicates, all
  * identical, collinear, integer grids with many distance ties, 0 and 1 point), for static
- * builds and for incremental insertion interleaved with queries; selection; invalid input;
+ * builds and for incremental insertion interleaved with queries; selection; the
+ * farthest-point order against the quadratic scan; invalid input;
  * allocation-failure injection (ENOMEM, tree unchanged, no leak).
  */
 #include "test_util.h"
@@ -453,6 +454,83 @@ static void test_invalid(void **state) {
 /* Allocation failures: every allocation of a build, of a run of insertions and of the
  * queries' result growth fails in turn; the call reports ENOMEM, the tree stays valid and
  * unchanged, and freeing leaves no block behind. */
+/* as_farthest_order against the quadratic scan it replaces (every distance updated after
+ * each pick, the first maximum taken), on every distribution (ties, duplicates, all points
+ * equal), for several q; then allocation failures (ENOMEM, no leak). */
+static void test_farthest_order(void **state) {
+    (void)state;
+    tu_alloc ta;
+    tu_alloc_init(&ta, -1);
+    anistar_allocator al = tu_allocator(&ta);
+    anistar_context *ctx = anistar_context_new(&al);
+    assert_non_null(ctx);
+    tu_rng r = {17};
+    const size_t sizes[] = {0, 1, 2, 7, 100, 1500};
+    for (int dist = 0; dist < DIST_COUNT; dist++)
+        for (size_t si = 0; si < sizeof sizes / sizeof *sizes; si++) {
+            size_t n = sizes[si];
+            double *xyz = malloc((3 * n + 3) * sizeof *xyz);
+            double *d = malloc((n + 1) * sizeof *d);
+            int32_t *want = malloc((n + 1) * sizeof *want), *got = malloc((n + 1) * sizeof *got);
+            assert_true(xyz && d && want && got);
+            gen_points(&r, dist, n, xyz);
+            const size_t qs[] = {1, 3, n / 2, n, n + 5};
+            for (size_t qi = 0; qi < sizeof qs / sizeof *qs; qi++) {
+                size_t q = qs[qi], nw = 0;
+                for (size_t i = 0; i < n; i++) d[i] = INFINITY;
+                size_t cur = 0;
+                while (n > 0 && nw < q) {
+                    want[nw++] = (int32_t)cur;
+                    d[cur] = -1;
+                    const double *x = xyz + 3 * cur;
+                    double far = -1;
+                    size_t next = 0;
+                    for (size_t i = 0; i < n; i++) {
+                        if (d[i] < 0) continue;
+                        double e0 = xyz[3 * i] - x[0], e1 = xyz[3 * i + 1] - x[1],
+                               e2 = xyz[3 * i + 2] - x[2];
+                        double dd = e0 * e0 + e1 * e1 + e2 * e2;
+                        if (dd < d[i]) d[i] = dd;
+                        if (d[i] > far) {
+                            far = d[i];
+                            next = i;
+                        }
+                    }
+                    if (far < 0) break;
+                    cur = next;
+                }
+                size_t ng = 99;
+                assert_int_equal(as_farthest_order(ctx, xyz, n, q, got, &ng), ANISTAR_OK);
+                assert_int_equal(ng, nw);
+                for (size_t i = 0; i < nw; i++) assert_int_equal(got[i], want[i]);
+            }
+            if (n == 1500 && dist == DIST_UNIFORM) { /* failures at every allocation */
+                long base = ta.live_blocks;
+                for (long f = 0;; f++) {
+                    size_t ng = 0;
+                    ta.fail_after = ta.count + f;
+                    anistar_status st = as_farthest_order(ctx, xyz, n, n / 3, got, &ng);
+                    ta.fail_after = -1;
+                    assert_int_equal(ta.live_blocks, base);
+                    if (st == ANISTAR_OK) break;
+                    assert_int_equal(st, ANISTAR_ENOMEM);
+                }
+            }
+            free(xyz);
+            free(d);
+            free(want);
+            free(got);
+        }
+    double bad[6] = {0, 0, 0, NAN, 1, 2};
+    int32_t o[2];
+    size_t no = 9;
+    assert_int_equal(as_farthest_order(ctx, bad, 2, 2, o, &no), ANISTAR_EINVAL);
+    assert_int_equal(as_farthest_order(ctx, bad, 2, 1, o, &no), ANISTAR_EINVAL);
+    assert_int_equal(no, 0);
+    anistar_context_free(ctx);
+    assert_int_equal(ta.live_blocks, 0);
+}
+
 static void test_alloc_failure(void **state) {
     (void)state;
     tu_alloc ta;
@@ -571,6 +649,7 @@ int main(void) {
         cmocka_unit_test(test_incremental),
         cmocka_unit_test(test_order_independence),
         cmocka_unit_test(test_invalid),
+        cmocka_unit_test(test_farthest_order),
         cmocka_unit_test(test_alloc_failure),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -700,3 +700,109 @@ int as_kdtree_check(const as_kdtree *kd) {
     }
     return 0;
 }
+
+/* ---- farthest-point order ------------------------------------------------------------- */
+
+/* A candidate in as_farthest_order's heap: its distance to the picks when pushed. */
+typedef struct kd_far {
+    double d;
+    int32_t i;
+} kd_far;
+
+/* a before b: the farther, then the lower index (the first maximum of a scan) */
+static inline int kd_far_before(const kd_far *a, const kd_far *b) {
+    return a->d > b->d || (a->d == b->d && a->i < b->i);
+}
+
+static int kd_far_push(anistar_context *ctx, kd_far **h, size_t *n, size_t *cap, kd_far x) {
+    if (*n == *cap && as_grow(ctx, (void **)h, cap, *n + 1, sizeof **h)) return -1;
+    kd_far *a = *h;
+    size_t k = (*n)++;
+    while (k > 0) {
+        size_t p = (k - 1) / 2;
+        if (!kd_far_before(&x, &a[p])) break;
+        a[k] = a[p];
+        k = p;
+    }
+    a[k] = x;
+    return 0;
+}
+
+static void kd_far_pop(kd_far *a, size_t *n) {
+    kd_far x = a[--*n];
+    size_t k = 0, m = *n;
+    for (;;) {
+        size_t c = 2 * k + 1;
+        if (c >= m) break;
+        if (c + 1 < m && kd_far_before(&a[c + 1], &a[c])) c++;
+        if (!kd_far_before(&a[c], &x)) break;
+        a[k] = a[c];
+        k = c;
+    }
+    if (m) a[k] = x;
+}
+
+static inline double kd_d2(const double *a, const double *b) {
+    double d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
+    return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+anistar_status as_farthest_order(anistar_context *ctx, const double *xyz, size_t n, size_t q,
+                                 int32_t *out, size_t *nout) {
+    *nout = 0;
+    if (n == 0 || q == 0) return ANISTAR_OK;
+    if (q > n) q = n;
+    for (size_t i = 0; i < 3 * n; i++)
+        if (!isfinite(xyz[i]))
+            return as_fail(ctx, ANISTAR_EINVAL, "kd-tree: point %zu is not finite", i / 3);
+    anistar_status rs = ANISTAR_OK;
+    double *dist = as_alloc_array(ctx, n, sizeof *dist);
+    kd_far *heap = NULL;
+    size_t nh = 0, caph = 0;
+    as_kdtree *kd = NULL;
+    as_idlist near = {0};
+    if (!dist) return as_fail(ctx, ANISTAR_ENOMEM, "kd-tree: out of memory (farthest points)");
+    for (size_t i = 0; i < n; i++) dist[i] = INFINITY;
+    if (q > 1 && (rs = as_kdtree_build(ctx, xyz, NULL, n, &kd)) != ANISTAR_OK) goto done;
+    size_t cur = 0;
+    for (size_t pick = 0; pick < q; pick++) {
+        out[(*nout)++] = (int32_t)cur;
+        const double *x = xyz + 3 * cur;
+        const double far = dist[cur]; /* every other distance is at most this */
+        dist[cur] = -1;
+        if (pick + 1 == q) break;
+        if (pick == 0) {
+            for (size_t i = 0; i < n; i++) {
+                if (dist[i] < 0) continue;
+                dist[i] = kd_d2(xyz + 3 * i, x);
+                if (kd_far_push(ctx, &heap, &nh, &caph, (kd_far){dist[i], (int32_t)i})) goto nomem;
+            }
+        } else {
+            /* the points whose distance can shrink: within sqrt(far) of the pick (a margin
+             * over the tree's rounding; the test below is the scan's) */
+            if ((rs = as_kdtree_radius(ctx, kd, x, sqrt(far) * (1 + 1e-9), &near)) != ANISTAR_OK)
+                goto done;
+            for (size_t k = 0; k < near.n; k++) {
+                size_t i = (size_t)near.ids[k];
+                if (dist[i] < 0) continue;
+                double d = kd_d2(xyz + 3 * i, x);
+                if (d < dist[i]) {
+                    dist[i] = d;
+                    if (kd_far_push(ctx, &heap, &nh, &caph, (kd_far){d, (int32_t)i})) goto nomem;
+                }
+            }
+        }
+        while (nh > 0 && dist[heap[0].i] != heap[0].d) kd_far_pop(heap, &nh);
+        if (nh == 0) break; /* every point picked */
+        cur = (size_t)heap[0].i;
+    }
+    goto done;
+nomem:
+    rs = as_fail(ctx, ANISTAR_ENOMEM, "kd-tree: out of memory (farthest points)");
+done:
+    as_idlist_free(ctx, &near);
+    if (kd) as_kdtree_free(ctx, kd);
+    as_free(ctx, heap, caph * sizeof *heap);
+    as_free(ctx, dist, n * sizeof *dist);
+    return rs;
+}

@@ -125,6 +125,20 @@ anistar_status as_kdtree_box(anistar_context *ctx, const as_kdtree *kd, const do
 anistar_status as_kdtree_box_any(anistar_context *ctx, const as_kdtree *kd, const double lo[3],
                                  const double hi[3], int sorted, as_idlist *out);
 
+/*
+ * as_farthest_order — the farthest-point order of n points xyz[3i..3i+2] (n < INT32_MAX):
+ * out[0] = 0, then each time the point whose squared distance (the formula above) to the
+ * nearest point picked so far is largest, ties to the lowest index, until q points are
+ * picked or all are; *nout receives how many (out holds q entries, or n when q > n). The
+ * same order as the scan that updates every distance after each pick, in about
+ * O(n log n) for spread points: after a pick at squared distance D from the others, only
+ * the points within sqrt(D) of it can get nearer (a radius query), and the next pick comes
+ * off a heap of (distance, index). ANISTAR_OK, ANISTAR_EINVAL (non-finite coordinates) or
+ * ANISTAR_ENOMEM.
+ */
+anistar_status as_farthest_order(anistar_context *ctx, const double *xyz, size_t n, size_t q,
+                                 int32_t *out, size_t *nout);
+
 /* Check the invariants (boxes contain their points, leaf sizes, preorder layout, tree
  * sizes of the forest, ids >= 0). Returns 0 if valid, -1 otherwise. For tests. */
 int as_kdtree_check(const as_kdtree *kd);

@@ -485,31 +485,16 @@ static anistar_status ms_sample(anistar_context *ctx, const as_surface *s, size_
         size_t stride = m > 8 * q ? m / (8 * q) : 1;
         size_t ncand = (m + stride - 1) / stride;
         if (ncand > ncand_max) ncand = ncand_max;
-        for (size_t i = 0; i < ncand; i++) {
-            memcpy(work + 4 * i, ms->xyz + 3 * (size_t)order[start[k] + i * stride],
+        /* work (4 ncand doubles): the candidates, then their farthest-point order */
+        int32_t *pick = (int32_t *)(work + 3 * ncand);
+        for (size_t i = 0; i < ncand; i++)
+            memcpy(work + 3 * i, ms->xyz + 3 * (size_t)order[start[k] + i * stride],
                    3 * sizeof(double));
-            work[4 * i + 3] = INFINITY;
-        }
-        size_t cur = 0;
-        for (size_t pick = 0; pick < q; pick++) {
-            const double *x = work + 4 * cur;
-            memcpy(out->points + 3 * n, x, 3 * sizeof(double));
+        size_t np = 0;
+        if ((st = as_farthest_order(c, work, ncand, q, pick, &np)) != ANISTAR_OK) goto done;
+        for (size_t i = 0; i < np; i++) {
+            memcpy(out->points + 3 * n, work + 3 * (size_t)pick[i], 3 * sizeof(double));
             out->component[n++] = (int32_t)k;
-            work[4 * cur + 3] = -1;
-            double far = -1;
-            size_t next = 0;
-            for (size_t i = 0; i < ncand; i++) {
-                double *w = work + 4 * i;
-                if (w[3] < 0) continue;
-                double d = v3_dist2(w, x);
-                if (d < w[3]) w[3] = d;
-                if (w[3] > far) {
-                    far = w[3];
-                    next = i;
-                }
-            }
-            if (far < 0) break;
-            cur = next;
         }
     }
     /* shrink to exactly n */

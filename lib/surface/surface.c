@@ -2492,9 +2492,6 @@ static anistar_status sm_areas(sm_state *st, double *area) {
 
 /* ---- 9. points ---- */
 
-/* Pick up to q records of rec[0..m) by farthest-point sampling of their midpoints (among
- * at most 8 q candidates, a regular stride through the list) and append their crossings
- * to out. work holds 4 m doubles. */
 /* One pick of a sample: the record bracketing the crossing and the point to refine from. */
 typedef struct sm_job {
     const sm_rec *rec;
@@ -2503,126 +2500,33 @@ typedef struct sm_job {
     int hit;
 } sm_job;
 
-/* A candidate of the farthest-point order in sm_order's heap: its distance to the picks
- * when pushed, its index. */
-typedef struct sm_far {
-    double d;
-    int32_t i;
-} sm_far;
-
-/* a before b: the farther, then the lower index (the first maximum of a scan) */
-static inline int sm_far_before(const sm_far *a, const sm_far *b) {
-    return a->d > b->d || (a->d == b->d && a->i < b->i);
-}
-
-static int sm_far_push(anistar_context *ctx, sm_far **h, size_t *n, size_t *cap, sm_far x) {
-    if (*n == *cap && as_grow(ctx, (void **)h, cap, *n + 1, sizeof **h)) return -1;
-    sm_far *a = *h;
-    size_t k = (*n)++;
-    while (k > 0) {
-        size_t p = (k - 1) / 2;
-        if (!sm_far_before(&x, &a[p])) break;
-        a[k] = a[p];
-        k = p;
-    }
-    a[k] = x;
-    return 0;
-}
-
-static void sm_far_pop(sm_far *a, size_t *n) {
-    sm_far x = a[--*n];
-    size_t k = 0, m = *n;
-    for (;;) {
-        size_t c = 2 * k + 1;
-        if (c >= m) break;
-        if (c + 1 < m && sm_far_before(&a[c + 1], &a[c])) c++;
-        if (!sm_far_before(&a[c], &x)) break;
-        a[k] = a[c];
-        k = c;
-    }
-    if (m) a[k] = x;
-}
-
-/*
- * The picks of up to q points of component comp from its m records rec (appended to
- * jobs[*nj..]): farthest-point order over the records' midpoints (a stride of them when
- * there are many): the first, then each time the candidate farthest from the picks so
- * far (the lowest index among equals). design: the order depends on the midpoints only,
- * not on the refined crossings, so the crossings can then be refined in any order (in
- * parallel). The distances to the picks are kept per candidate (work[4i+3]) and only
- * those within the largest of them of a new pick can shrink: a kd-tree finds them and a
- * heap (lazy: an entry whose distance is no longer the candidate's is skipped) gives the
- * next pick, so the order is the one a scan of every candidate after each pick gives
- * (it was that scan: 4096 picks among 32,768 candidates took 13% of the shock sphere's
- * run), in about n log n.
- */
+/* Pick up to q records of rec[0..m) by farthest-point sampling of their midpoints (among
+ * at most 8 q candidates, a regular stride through the list: as_farthest_order) and
+ * append one job per pick to jobs (*nj of them). work holds 4 m doubles. */
 static anistar_status sm_order(anistar_context *ctx, const sm_rec *rec, size_t m, size_t q,
                                int32_t comp, double *work, sm_job *jobs, size_t *nj) {
     size_t stride = m > 8 * q ? m / (8 * q) : 1;
     size_t nc = (m + stride - 1) / stride;
     if (q > nc) q = nc;
-    anistar_status rs = ANISTAR_OK;
-    double *pts = as_alloc_array(ctx, nc, 3 * sizeof(double));
-    sm_far *heap = NULL;
-    size_t nh = 0, caph = 0;
-    as_kdtree *kd = NULL;
-    as_idlist near = {0};
-    if (!pts) return as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
+    /* work (4 m doubles) holds the candidates' midpoints, then their order */
+    double *pts = work;
+    int32_t *order = (int32_t *)(work + 3 * nc);
     for (size_t i = 0; i < nc; i++) {
         const sm_rec *r = &rec[i * stride];
-        double *w = work + 4 * i;
-        for (int k = 0; k < 3; k++) w[k] = 0.5 * (r->a[k] + r->b[k]);
-        w[3] = INFINITY;
-        memcpy(pts + 3 * i, w, 3 * sizeof(double));
+        for (int k = 0; k < 3; k++) pts[3 * i + k] = 0.5 * (r->a[k] + r->b[k]);
     }
-    if ((rs = as_kdtree_build(ctx, pts, NULL, nc, &kd)) != ANISTAR_OK) goto done;
-    size_t cur = 0;
-    for (size_t pick = 0; pick < q; pick++) {
+    size_t no = 0;
+    anistar_status rs = as_farthest_order(ctx, pts, nc, q, order, &no);
+    if (rs) return rs;
+    for (size_t p = 0; p < no; p++) {
+        size_t cur = (size_t)order[p];
         sm_job *j = &jobs[(*nj)++];
         j->rec = &rec[cur * stride];
-        memcpy(j->mid, work + 4 * cur, sizeof j->mid);
+        memcpy(j->mid, pts + 3 * cur, sizeof j->mid);
         j->comp = comp;
         j->hit = 0;
-        const double *mid = j->mid;
-        const double far = work[4 * cur + 3]; /* every other distance is at most this */
-        work[4 * cur + 3] = -1;
-        if (pick + 1 == q) break;
-        if (pick == 0) {
-            for (size_t i = 0; i < nc; i++) {
-                double *w = work + 4 * i;
-                if (w[3] < 0) continue;
-                w[3] = v3_dist2(w, mid);
-                if (sm_far_push(ctx, &heap, &nh, &caph, (sm_far){w[3], (int32_t)i})) goto nomem;
-            }
-        } else {
-            /* the candidates whose distance can shrink: within sqrt(far) of the pick (a
-             * margin over the kd-tree's rounding; the test below is the scan's) */
-            if ((rs = as_kdtree_radius(ctx, kd, mid, sqrt(far) * (1 + 1e-9), &near)) !=
-                ANISTAR_OK)
-                goto done;
-            for (size_t k = 0; k < near.n; k++) {
-                double *w = work + 4 * (size_t)near.ids[k];
-                if (w[3] < 0) continue;
-                double d = v3_dist2(w, mid);
-                if (d < w[3]) {
-                    w[3] = d;
-                    if (sm_far_push(ctx, &heap, &nh, &caph, (sm_far){d, near.ids[k]})) goto nomem;
-                }
-            }
-        }
-        while (nh > 0 && work[4 * (size_t)heap[0].i + 3] != heap[0].d) sm_far_pop(heap, &nh);
-        if (nh == 0) break; /* every candidate picked */
-        cur = (size_t)heap[0].i;
     }
-    goto done;
-nomem:
-    rs = as_fail(ctx, ANISTAR_ENOMEM, "sampling: out of memory");
-done:
-    as_idlist_free(ctx, &near);
-    if (kd) as_kdtree_free(ctx, kd);
-    as_free(ctx, heap, caph * sizeof *heap);
-    as_free(ctx, pts, nc * 3 * sizeof(double));
-    return rs;
+    return ANISTAR_OK;
 }
 
 typedef struct sm_jobs {

@@ -797,7 +797,8 @@ static void as_bvh_near_grid(const as_bvh *b, const double *a, const double *c,
                              int32_t np, double *best, double *bt, int32_t *btri, double x[3]) {
     double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     double ts = 0;
-    if (dd > 0) ts = ((ref[0] - a[0]) * d[0] + (ref[1] - a[1]) * d[1] + (ref[2] - a[2]) * d[2]) / dd;
+    if (dd > 0)
+        ts = ((ref[0] - a[0]) * d[0] + (ref[1] - a[1]) * d[1] + (ref[2] - a[2]) * d[2]) / dd;
     ts = ts < 0 ? 0 : (ts > 1 ? 1 : ts);
     int32_t i0 = (int32_t)(ts * np);
     if (i0 > np - 1) i0 = np - 1;

@@ -6,6 +6,8 @@
 
 #include <string.h>
 
+#include "pool.h"
+
 void as_starmove_free(anistar_context *ctx, as_starmove *mv) {
     for (size_t k = 0; k < mv->n; k++)
         if (mv->old[k]) {
@@ -14,6 +16,8 @@ void as_starmove_free(anistar_context *ctx, as_starmove *mv) {
         }
     as_free(ctx, mv->ids, mv->cap * sizeof *mv->ids);
     as_free(ctx, mv->old, mv->cap * sizeof *mv->old);
+    as_free(ctx, mv->bid, mv->cap * sizeof *mv->bid);
+    as_free(ctx, mv->bst, mv->cap * sizeof *mv->bst);
     as_free(ctx, mv->seeds, mv->cap_seeds * sizeof *mv->seeds);
     memset(mv, 0, sizeof *mv);
 }
@@ -40,11 +44,19 @@ static anistar_status reserve_touched(anistar_context *ctx, as_starmove *mv, siz
     while (cap < n) cap *= 2;
     int32_t *ids = as_alloc_array(ctx, cap, sizeof *ids);
     as_star **old = as_alloc_array(ctx, cap, sizeof *old);
-    if (!ids || !old) {
+    int32_t *bid = as_alloc_array(ctx, cap, sizeof *bid);
+    as_star **bst = as_alloc_array(ctx, cap, sizeof *bst);
+    if (!ids || !old || !bid || !bst) {
         as_free(ctx, ids, cap * sizeof *ids);
         as_free(ctx, old, cap * sizeof *old);
+        as_free(ctx, bid, cap * sizeof *bid);
+        as_free(ctx, bst, cap * sizeof *bst);
         return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (touched stars)");
     }
+    as_free(ctx, mv->bid, mv->cap * sizeof *mv->bid); /* empty between moves */
+    as_free(ctx, mv->bst, mv->cap * sizeof *mv->bst);
+    mv->bid = bid;
+    mv->bst = bst;
     if (keep) {
         memcpy(ids, mv->ids, keep * sizeof *ids);
         memcpy(old, mv->old, keep * sizeof *old);
@@ -96,46 +108,43 @@ static anistar_status touched_stars(as_starset *ss, as_starmove *mv, int32_t v,
     return ANISTAR_OK;
 }
 
-/*
- * A new star of site w (current position and metric) into *out: the corners, w, the
- * sites of old's restricted facets other than skip, then growth from the kd-tree.
- */
-static anistar_status new_star(as_starset *ss, as_starmove *mv, int32_t w, const as_star *old,
+/* A new star of site w (current position and metric) into *out, on thread slot t (-1:
+ * the caller's): as_starset_rebuild_on into a star allocated here with the star set's
+ * context (freed by it like any star). */
+static anistar_status new_star(as_starset *ss, int t, int32_t w, const as_star *old,
                                int32_t skip, as_star **out) {
-    anistar_context *ctx = ss->ctx;
-    anistar_status s;
     *out = NULL;
-    as_star *st = as_alloc(ctx, sizeof *st);
-    if (!st) return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (star)");
-    as_star_init(st, ctx);
-    uint32_t ep = as_starset_next_epoch(ss);
-    ss->ws.stamp[w] = ep;
-    size_t ns = 0;
-    for (int32_t i = 0; i < old->nrf; i++)
-        for (int j = 0; j < 3; j++) {
-            int32_t q = old->rf[i].g[j];
-            if (q < 8 || q == skip || ss->ws.stamp[q] == ep) continue;
-            ss->ws.stamp[q] = ep;
-            if (ns == mv->cap_seeds &&
-                as_grow(ctx, (void **)&mv->seeds, &mv->cap_seeds, ns + 1, sizeof *mv->seeds)) {
-                star_free(ctx, st);
-                return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (seeds)");
-            }
-            mv->seeds[ns++] = q;
-        }
-    const as_metric_frame *mf = &ss->mf[w];
-    s = as_star_build(&ss->env, st, mf, w, &ss->sc);
-    if (s == ANISTAR_OK && ns)
-        s = as_star_insert(&ss->env, st, mf, mv->seeds, (int32_t)ns, &ss->sc, NULL);
-    if (s == ANISTAR_OK) s = as_starset_grow_star(ss, st, mf, ep);
+    as_star *st = as_alloc(ss->ctx, sizeof *st);
+    if (!st) return as_fail(ss->ctx, ANISTAR_ENOMEM, "optimize: out of memory (star)");
+    as_star_init(st, ss->ctx);
+    anistar_status s = as_starset_rebuild_on(ss, t, w, old, skip, st);
     if (s != ANISTAR_OK) {
-        star_free(ctx, st);
+        star_free(ss->ctx, st);
         return s;
     }
-    st->nv_base = st->nv;
-    ss->star_rebuilds++;
     *out = st;
     return ANISTAR_OK;
+}
+
+/* The most rebuilds of one move that run at once (a move touches about seven stars; a
+ * round cut short by an early stop wastes the rest). */
+#define AS_STARMOVE_ROUND 8
+
+/* The rebuilds of one round of a move on the pool: task j builds the new star of site
+ * id[j] into nw[j]. */
+typedef struct mv_round {
+    as_starset *ss;
+    as_starmove *mv;
+    size_t m;
+    int32_t id[AS_STARMOVE_ROUND];
+    as_star *nw[AS_STARMOVE_ROUND];
+} mv_round;
+
+static anistar_status round_task(void *arg, int32_t j, int t, anistar_context *tctx) {
+    (void)tctx;
+    mv_round *R = arg;
+    int32_t id = R->id[j];
+    return new_star(R->ss, t, id, R->ss->stars[id], id == R->mv->v ? -1 : R->mv->v, &R->nw[j]);
 }
 
 /* 1 if some inconsistent facet of ss is final: none of its vertices' stars is among the
@@ -252,10 +261,56 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
     mv->old_mf = ss->mf[v];
     memcpy(ss->xyz + 3 * (size_t)v, p, 3 * sizeof(double));
     ss->mf[v] = mfp;
-    for (size_t k = 0; k < count; k++) {
+    /* design: the rebuilds read only the old stars, the positions, the metrics and the
+     * kd-tree (as_starset_rebuild_on), so with threads they are built ahead, up to
+     * AS_STARMOVE_ROUND at once (the first round: v's star and the next ones), kept by id,
+     * and applied one at a time in the serial loop's order (v's fan reorders the others)
+     * with the same early stop: the stars applied, the table and the verdict are those of
+     * the serial loop whatever the thread count; stars built past an early stop are freed
+     * unused. */
+    int T = ss->pool ? ss->nthreads : 1;
+    if (T > 1 && (s = as_starset_threads_prepare(ss)) != ANISTAR_OK) return s;
+    mv->nbuilt = 0;
+    for (size_t k = 0; k < count && s == ANISTAR_OK; k++) {
         int32_t id = mv->ids[k];
-        as_star *old = ss->stars[id], *nw;
-        if ((s = new_star(ss, mv, id, old, id == v ? -1 : v, &nw)) != ANISTAR_OK) break;
+        as_star *nw = NULL;
+        for (size_t j = 0; j < mv->nbuilt && !nw; j++) /* built ahead? */
+            if (mv->bid[j] == id) {
+                nw = mv->bst[j];
+                mv->bid[j] = mv->bid[--mv->nbuilt];
+                mv->bst[j] = mv->bst[mv->nbuilt];
+            }
+        if (!nw && T == 1) {
+            s = new_star(ss, -1, id, ss->stars[id], id == v ? -1 : v, &nw);
+        } else if (!nw) {
+            /* a round: this star and the next ones not built yet, in the current order */
+            mv_round R;
+            R.ss = ss;
+            R.mv = mv;
+            R.m = 0;
+            for (size_t q = k; q < count && R.m < AS_STARMOVE_ROUND; q++) {
+                int have = 0;
+                for (size_t j = 0; j < mv->nbuilt && !have; j++) have = mv->bid[j] == mv->ids[q];
+                if (!have) {
+                    R.id[R.m] = mv->ids[q];
+                    R.nw[R.m++] = NULL;
+                }
+            }
+            s = as_pool_run(ss->pool, (int32_t)R.m, round_task, &R);
+            as_starset_collect_counts(ss);
+            for (size_t j = 0; j < R.m; j++) {
+                if (s != ANISTAR_OK || j == 0) continue;
+                mv->bid[mv->nbuilt] = R.id[j]; /* room: count entries (reserve_touched) */
+                mv->bst[mv->nbuilt++] = R.nw[j];
+                R.nw[j] = NULL;
+            }
+            nw = R.nw[0];
+            if (s != ANISTAR_OK)
+                for (size_t j = 0; j < R.m; j++) star_free(ss->ctx, R.nw[j]);
+        }
+        if (s != ANISTAR_OK) break;
+        as_star *old = ss->stars[id];
+        ss->star_rebuilds++;
         ss->stars[id] = nw;
         mv->old[k] = old;
         mv->n = k + 1;
@@ -269,6 +324,8 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
         }
         if (k == 0) order_by_fan(ss, mv, count);
     }
+    for (size_t j = 0; j < mv->nbuilt; j++) star_free(ss->ctx, mv->bst[j]);
+    mv->nbuilt = 0;
     if (s != ANISTAR_OK) {
         (void)revert(ss, mv);
         return s;

@@ -48,8 +48,11 @@ typedef struct as_starmove {
     int32_t *ids;           /* the touched stars (v first, then ascending ids) */
     as_star **old;          /* their structures before the move (owned until commit/undo) */
     size_t n, cap;
-    int32_t *seeds;         /* scratch: seed sites of a rebuilt star */
+    int32_t *seeds;         /* scratch: the ids of as_starmove_flush's rebuild */
     size_t cap_seeds;
+    int32_t *bid;           /* stars built ahead on the threads: their sites ... */
+    as_star **bst;          /* ... and structures (nbuilt of them, room for cap) */
+    size_t nbuilt;
     size_t stale;           /* kd-tree entries at positions that are no longer current */
     int early;              /* set by the caller: stop at the first final inconsistency */
     int doomed;             /* out: the move stopped early (see as_starmove_apply) */
@@ -91,11 +94,19 @@ anistar_status as_starmove_undo(as_starset *ss, as_starmove *mv);
 anistar_status as_starmove_flush(as_starset *ss, as_starmove *mv);
 
 /* Defined in the "exported for starmove.c" block at the end of starset.c (wrappers of
- * its static apply_diff, grow_star and next_epoch; see there). */
+ * its static apply_diff and next_epoch, and the rebuild of a star; see there). */
 anistar_status as_starset_apply_diff(as_starset *ss, int32_t v, const as_rfacet *old,
                                      int32_t nold);
-anistar_status as_starset_grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
-                                    uint32_t ep);
 uint32_t as_starset_next_epoch(as_starset *ss);
+/* A new star of site w (its current position and metric) from scratch into st
+ * (initialised, empty), on thread slot t's workspace (-1: the caller's): the corners, w,
+ * the sites of old's restricted facets other than skip, then growth from the kd-tree. It
+ * reads old, the positions, the metrics and the kd-tree only, so the rebuilds of one move
+ * may run at once (slot workspaces need as_starset_threads_prepare first). */
+anistar_status as_starset_rebuild_on(as_starset *ss, int t, int32_t w, const as_star *old,
+                                     int32_t skip, as_star *st);
+/* Size the thread slots' workspaces to the sites and copy the environment to them (no-op
+ * without a pool). */
+anistar_status as_starset_threads_prepare(as_starset *ss);
 
 #endif /* ANISTAR_STARMOVE_H */

@@ -525,6 +525,7 @@ static void ws_free(anistar_context *ctx, as_simws *w) {
     as_free(ctx, w->batch, w->cap_batch * sizeof *w->batch);
     as_free(ctx, w->hints, w->cap_hints * sizeof *w->hints);
     as_free(ctx, w->bdist, w->cap_bdist * sizeof *w->bdist);
+    as_free(ctx, w->seeds, w->cap_seeds * sizeof *w->seeds);
     if (w->spare) {
         as_star_destroy(ctx, w->spare);
         as_free(ctx, w->spare, sizeof *w->spare);
@@ -560,6 +561,7 @@ void as_starset_destroy(as_starset *ss) {
     as_free(ctx, ss->regrow, ss->cap_regrow * sizeof *ss->regrow);
     as_free(ctx, ss->regrow_box, ss->cap_regrow_box * 6 * sizeof *ss->regrow_box);
     as_free(ctx, ss->ws.hints, ss->ws.cap_hints * sizeof *ss->ws.hints);
+    as_free(ctx, ss->ws.seeds, ss->ws.cap_seeds * sizeof *ss->ws.seeds);
     as_free(ctx, ss->keep, ss->cap_keep * sizeof *ss->keep);
     as_idlist_free(ctx, &ss->ws.cand);
     as_idlist_free(ctx, &ss->ws.ids);
@@ -799,12 +801,8 @@ static anistar_status grow_star_box(as_starset *ss, as_simws *w, const as_star_e
                                     as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box);
 
-static anistar_status grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
-                                uint32_t ep) {
-    return grow_star_box(ss, &ss->ws, &ss->env, &ss->sc, st, mf, ep, NULL);
-}
-
-/* grow_star; box (lo then hi), when not NULL, replaces the first query's box. env and
+/* Grow star st of center gid (frame mf) on workspace w (design: above open_radius); box (lo then
+ * hi), when not NULL, replaces the first query's box. env and
  * sc: the environment and scratch of the thread that grows st (its context takes the
  * allocations and the errors); the star set's search lists and marks are lent to one
  * growth at a time. */
@@ -1802,12 +1800,38 @@ anistar_status as_starset_apply_diff(as_starset *ss, int32_t v, const as_rfacet 
     return apply_diff(ss, v, old, nold);
 }
 
-anistar_status as_starset_grow_star(as_starset *ss, as_star *st, const as_metric_frame *mf,
-                                    uint32_t ep) {
-    return grow_star(ss, st, mf, ep);
+uint32_t as_starset_next_epoch(as_starset *ss) { return next_epoch(ss); }
+
+anistar_status as_starset_rebuild_on(as_starset *ss, int t, int32_t w, const as_star *old,
+                                     int32_t skip, as_star *st) {
+    as_simws *ws = t < 0 ? &ss->ws : &ss->tws[t];
+    const as_star_env *env = t < 0 ? &ss->env : &ss->tenv[t];
+    as_star_scratch *sc = t < 0 ? &ss->sc : &ss->tsc[t];
+    anistar_context *ctx = env->ctx;
+    uint32_t ep = ws_epoch(ss, ws);
+    ws->stamp[w] = ep;
+    size_t ns = 0;
+    for (int32_t i = 0; i < old->nrf; i++)
+        for (int j = 0; j < 3; j++) {
+            int32_t q = old->rf[i].g[j];
+            if (q < 8 || q == skip || ws->stamp[q] == ep) continue;
+            ws->stamp[q] = ep;
+            if (ns == ws->cap_seeds &&
+                as_grow(ctx, (void **)&ws->seeds, &ws->cap_seeds, ns + 1, sizeof *ws->seeds))
+                return as_fail(ctx, ANISTAR_ENOMEM, "optimize: out of memory (seeds)");
+            ws->seeds[ns++] = q;
+        }
+    const as_metric_frame *mf = &ss->mf[w];
+    anistar_status s = as_star_build(env, st, mf, w, sc);
+    if (s == ANISTAR_OK && ns) s = as_star_insert(env, st, mf, ws->seeds, (int32_t)ns, sc, NULL);
+    if (s == ANISTAR_OK) s = grow_star_box(ss, ws, env, sc, st, mf, ep, NULL);
+    if (s == ANISTAR_OK) st->nv_base = st->nv;
+    return s;
 }
 
-uint32_t as_starset_next_epoch(as_starset *ss) { return next_epoch(ss); }
+anistar_status as_starset_threads_prepare(as_starset *ss) {
+    return ss->pool ? as_starset_simulate_prepare(ss) : ANISTAR_OK;
+}
 
 anistar_status as_starset_lfs(as_starset *ss, int32_t v, double need, double *lfs) {
     if (!isnan(ss->lfs[v])) {

@@ -92,6 +92,8 @@ typedef struct as_simws {
     size_t cap_list, cap_batch;
     double *bdist;           /* M_v distances of grow_star's candidates (batch), -1: not yet */
     size_t cap_bdist;
+    int32_t *seeds;          /* a rebuilt star's seed sites (as_starset_rebuild_on) */
+    size_t cap_seeds;
     as_star *spare;          /* a star for simulations (Pick_valid) */
     as_star_ovr ovr;         /* the simulated point (the spare's) */
     uint64_t conflict_tests, star_builds;

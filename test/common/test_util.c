@@ -1,6 +1,7 @@
 #include "test_util.h"
 
 #include <math.h>
+#include <pthread.h>
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,8 +10,20 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+/* The library calls the allocator from its threads at once (anistar.h): one lock for the
+ * counters of every tu_alloc (tests only). */
+static pthread_mutex_t tu_alloc_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void *tu_alloc_locked(tu_alloc *a, void *ptr, size_t old_size, size_t new_size);
+
 static void *tu_alloc_fn(void *user, void *ptr, size_t old_size, size_t new_size) {
-    tu_alloc *a = user;
+    pthread_mutex_lock(&tu_alloc_lock);
+    void *q = tu_alloc_locked(user, ptr, old_size, new_size);
+    pthread_mutex_unlock(&tu_alloc_lock);
+    return q;
+}
+
+static void *tu_alloc_locked(tu_alloc *a, void *ptr, size_t old_size, size_t new_size) {
     if (new_size == 0) {
         if (ptr) {
             a->live_blocks--;

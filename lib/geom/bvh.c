@@ -724,14 +724,6 @@ static inline double as_near_lim(double best, double tol) {
     return r * r;
 }
 
-/*
- * as_bvh_segment_nearest — see bvh.h.
- * design: a contact x is computed from the rounded t of as_segment_triangle, so it may lie
- * outside its triangle's box by a few ulps of the coordinates; a box is pruned only when
- * its distance to ref exceeds the best distance by more than tol = 1e-9 of the
- * coordinates' magnitude (and a relative 1e-9), so no contact at or below the best
- * distance is ever skipped and the answer is the exhaustive scan's.
- */
 /* The contact of [a, a + d] with triangle slot s nearest ref so far (see
  * as_bvh_segment_nearest): *best, *bt, *btri and x updated when it is nearer. */
 static inline void as_near_try(const as_bvh *b, uint32_t s, const double *a, const double *c,
@@ -870,6 +862,16 @@ static void as_bvh_near_grid(const as_bvh *b, const double *a, const double *c,
     }
 }
 
+/*
+ * as_bvh_segment_nearest — see bvh.h.
+ * design: a contact x is computed from the rounded t of as_segment_triangle, so it may lie
+ * outside its triangle's box by a few ulps of the coordinates; a box (or a piece of the
+ * segment) is pruned only when its distance to ref exceeds the best distance by more than
+ * tol = 1e-9 of the coordinates' magnitude (and a relative 1e-9), so no contact at or
+ * below the best distance is skipped and the answer is the exhaustive scan's — unless a
+ * computed t is off by more than that, which only a segment nearly parallel to a triangle
+ * can cause (its crossing point is then ill-conditioned whichever way it is found).
+ */
 int as_bvh_segment_nearest(const as_bvh *b, const double a[3], const double c[3],
                            const double ref[3], double x[3]) {
     if (!b->tc || b->nnodes == 0) return 0;
@@ -949,7 +951,6 @@ int as_bvh_ray_parity(const as_bvh *b, const double p[3], const double q[3]) {
 
 static int as_bvh_side_far(const as_bvh *b, const double p[3]);
 
-
 /*
  * The side of p from the grid: the parity along [p, q], q the corner of p's cell nearest p
  * whose side is known (else another corner), over the triangles of that cell only: the
@@ -959,7 +960,7 @@ static int as_bvh_side_far(const as_bvh *b, const double p[3]);
 static int as_bvh_side_near(const as_bvh *b, const double p[3]) {
     int32_t base[3], near[3];
     for (int c = 0; c < 3; c++) {
-        double u = (p[c] - b->g0[c]) / b->gh;
+        double u = (p[c] - b->g0[c]) * b->ginv;
         int32_t i = u < 0 ? 0 : (int32_t)u;
         if (i > b->ng[c] - 2) i = b->ng[c] - 2;
         double m = AS_BVH_CELL_MARGIN * b->gh;

@@ -249,6 +249,10 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
                     ANISTAR_OK)
                 return s;
     }
+    /* the threads' workspaces (sized to the sites, the environment copied: it changed
+     * above on the first move); before x is taken, since it may grow the point arrays */
+    const int T = ss->pool ? ss->nthreads : 1;
+    if (T > 1 && (s = as_starset_threads_prepare(ss)) != ANISTAR_OK) return s;
     const double *x = ss->xyz + 3 * (size_t)v;
     as_metric_frame mfp;
     if ((s = as_starset_metric(ss, p, &mfp)) != ANISTAR_OK) return s;
@@ -268,8 +272,6 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
      * with the same early stop: the stars applied, the table and the verdict are those of
      * the serial loop whatever the thread count; stars built past an early stop are freed
      * unused. */
-    int T = ss->pool ? ss->nthreads : 1;
-    if (T > 1 && (s = as_starset_threads_prepare(ss)) != ANISTAR_OK) return s;
     mv->nbuilt = 0;
     for (size_t k = 0; k < count && s == ANISTAR_OK; k++) {
         int32_t id = mv->ids[k];

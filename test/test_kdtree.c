@@ -451,9 +451,6 @@ static void test_invalid(void **state) {
     anistar_context_free(ctx);
 }
 
-/* Allocation failures: every allocation of a build, of a run of insertions and of the
- * queries' result growth fails in turn; the call reports ENOMEM, the tree stays valid and
- * unchanged, and freeing leaves no block behind. */
 /* as_farthest_order against the quadratic scan it replaces (every distance updated after
  * each pick, the first maximum taken), on every distribution (ties, duplicates, all points
  * equal), for several q; then allocation failures (ENOMEM, no leak). */
@@ -531,6 +528,9 @@ static void test_farthest_order(void **state) {
     assert_int_equal(ta.live_blocks, 0);
 }
 
+/* Allocation failures: every allocation of a build, of a run of insertions and of the
+ * queries' result growth fails in turn; the call reports ENOMEM, the tree stays valid and
+ * unchanged, and freeing leaves no block behind. */
 static void test_alloc_failure(void **state) {
     (void)state;
     tu_alloc ta;

@@ -703,6 +703,12 @@ int as_kdtree_check(const as_kdtree *kd) {
 
 /* ---- farthest-point order ------------------------------------------------------------- */
 
+/* design (as_farthest_order): the distances to the picks are kept per point, and only
+ * those within the largest of them of a new pick can shrink: a kd-tree radius query finds
+ * them, and a lazy heap (an entry whose distance is no longer the point's is skipped when
+ * it comes up) gives the next pick, so the order is the scan's in about n log n. Used by
+ * the implicit sampler (crossing records' midpoints) and the mesh sampler (vertices). */
+
 /* A candidate in as_farthest_order's heap: its distance to the picks when pushed. */
 typedef struct kd_far {
     double d;

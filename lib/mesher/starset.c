@@ -801,11 +801,11 @@ static anistar_status grow_star_box(as_starset *ss, as_simws *w, const as_star_e
                                     as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box);
 
-/* Grow star st of center gid (frame mf) on workspace w (design: above open_radius); box (lo then
- * hi), when not NULL, replaces the first query's box. env and
- * sc: the environment and scratch of the thread that grows st (its context takes the
- * allocations and the errors); the star set's search lists and marks are lent to one
- * growth at a time. */
+/* Grow star st of center gid (frame mf) on workspace w (the design: above open_radius);
+ * box (lo then hi), when not NULL, replaces the first query's box. env and sc: the
+ * environment and scratch of the thread that grows st (its context takes the allocations
+ * and the errors); the star set's search lists and marks are lent to one growth at a
+ * time. */
 static anistar_status grow_star_box(as_starset *ss, as_simws *w, const as_star_env *env,
                                     as_star_scratch *sc, as_star *st, const as_metric_frame *mf,
                                     uint32_t ep, const double *box) {

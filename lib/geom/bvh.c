@@ -597,7 +597,7 @@ static inline int as_bvh_seg_tri_box(const double *a, const double *d, const dou
     return as_bvh_seg_box(a, d, inv, lo, hi);
 }
 
-enum { AS_WALK_HITS, AS_WALK_COUNT, AS_WALK_PARITY };
+enum { AS_WALK_HITS, AS_WALK_COUNT, AS_WALK_PARITY, AS_WALK_NEAREST };
 
 typedef struct as_bvh_walk {
     int mode;
@@ -606,6 +606,11 @@ typedef struct as_bvh_walk {
     int oom;
     size_t count, proper;
     int parity, on;
+    /* AS_WALK_NEAREST (as_bvh_segment_nearest): the reference point, the best contact so
+     * far (squared distance, t, triangle id, point), the box bound from it, the margin */
+    const double *ref;
+    double best, bt, lim, tol, *x;
+    int32_t btri;
 } as_bvh_walk;
 
 static int as_bvh_hit_push(anistar_context *ctx, as_bvh_hits *out, int32_t tri, int kind,
@@ -625,6 +630,12 @@ static int as_bvh_hit_push(anistar_context *ctx, as_bvh_hits *out, int32_t tri, 
 /* Depth-first walk of the boxes the segment [a, c] may meet, classifying their
  * triangles according to w->mode. Stops early on memory failure or (parity) when a
  * lies on a triangle. */
+static inline double as_box_d2(const double *lo, const double *hi, const double *q);
+static inline void as_near_try(const as_bvh *b, uint32_t s, const double *a, const double *c,
+                               const double *d, const double *ref, double *best, double *bt,
+                               int32_t *btri, double x[3]);
+static inline double as_near_lim(double best, double tol);
+
 static void as_bvh_seg_walk(const as_bvh *b, const double *a, const double *c, as_bvh_walk *w) {
     if (!b->tc || b->nnodes == 0) return;
     double d[3], inv[3];
@@ -637,6 +648,7 @@ static void as_bvh_seg_walk(const as_bvh *b, const double *a, const double *c, a
         uint32_t ni = st[--sp];
         const as_bvh_node *nd = &b->nodes[ni];
         if (!as_bvh_seg_box(a, d, inv, nd->lo, nd->hi)) continue;
+        if (w->mode == AS_WALK_NEAREST && as_box_d2(nd->lo, nd->hi, w->ref) > w->lim) continue;
         if (nd->right) {
             st[sp++] = nd->right;
             st[sp++] = ni + 1;
@@ -645,6 +657,12 @@ static void as_bvh_seg_walk(const as_bvh *b, const double *a, const double *c, a
         for (uint32_t s = nd->begin; s < nd->begin + nd->count; s++) {
             const double *u = b->tc + 9 * (size_t)s, *v = u + 3, *x = u + 6;
             if (!as_bvh_seg_tri_box(a, d, inv, u, v, x)) continue;
+            if (w->mode == AS_WALK_NEAREST) {
+                double was = w->best;
+                as_near_try(b, s, a, c, d, w->ref, &w->best, &w->bt, &w->btri, w->x);
+                if (w->best != was) w->lim = as_near_lim(w->best, w->tol);
+                continue;
+            }
             if (w->mode == AS_WALK_PARITY) {
                 int r = as_segment_triangle_sos(a, c, u, v, x);
                 if (r < 0) {
@@ -715,13 +733,20 @@ anistar_status as_bvh_segment(anistar_context *ctx, const as_bvh *b, const doubl
     return ANISTAR_OK;
 }
 
-static inline double as_box_d2(const double *lo, const double *hi, const double *q);
+static inline double as_dmin(double x, double y) { return x < y ? x : y; }
+static inline double as_dmax(double x, double y) { return x > y ? x : y; }
 
 /* Whether a box at squared distance bd2 from ref may hold a contact at squared distance
  * <= best (lim: the bound on bd2 from best, see as_bvh_segment_nearest). */
 static inline double as_near_lim(double best, double tol) {
     double r = sqrt(best) * (1 + 1e-9) + tol;
     return r * r;
+}
+
+/* The point of [a, c] at parameter t (c itself at t = 1, a at t = 0). */
+static inline void as_seg_at(const double *a, const double *c, const double *d, double t,
+                             double p[3]) {
+    for (int k = 0; k < 3; k++) p[k] = t == 1 ? c[k] : a[k] + t * d[k];
 }
 
 /* The contact of [a, a + d] with triangle slot s nearest ref so far (see
@@ -733,7 +758,7 @@ static inline void as_near_try(const as_bvh *b, uint32_t s, const double *a, con
     double t;
     if (as_segment_triangle(a, c, u, v, w, &t) == AS_HIT_NONE) return;
     double q[3];
-    for (int k = 0; k < 3; k++) q[k] = t == 1 ? c[k] : a[k] + t * d[k];
+    as_seg_at(a, c, d, t, q);
     double e0 = q[0] - ref[0], e1 = q[1] - ref[1], e2 = q[2] - ref[2];
     double dq = e0 * e0 + e1 * e1 + e2 * e2;
     int32_t id = b->id[s];
@@ -767,12 +792,6 @@ static inline void as_bvh_cell_range(const as_bvh *b, int k, double lo, double h
 /* Segments of more pieces than this walk the tree (a piece is 0.9 cells long at most, so
  * its box, grown by the margins, meets at most two cells per axis). */
 #define AS_BVH_SEG_PIECES 4096
-
-/* The point of [a, c] at parameter t (c itself at t = 1, a at t = 0). */
-static inline void as_seg_at(const double *a, const double *c, const double *d, double t,
-                             double p[3]) {
-    for (int k = 0; k < 3; k++) p[k] = t == 1 ? c[k] : a[k] + t * d[k];
-}
 
 /*
  * as_bvh_segment_nearest on the side grid: the segment cut into np pieces of at most 0.9
@@ -834,8 +853,8 @@ static void as_bvh_near_grid(const as_bvh *b, const double *a, const double *c,
         int32_t r0[3], r1[3];
         double qlo[3], qhi[3]; /* the piece's box */
         for (int k = 0; k < 3; k++) {
-            qlo[k] = fmin(p0[k], p1[k]) - tol;
-            qhi[k] = fmax(p0[k], p1[k]) + tol;
+            qlo[k] = as_dmin(p0[k], p1[k]) - tol;
+            qhi[k] = as_dmax(p0[k], p1[k]) + tol;
             as_bvh_cell_range(b, k, qlo[k], qhi[k], &r0[k], &r1[k]);
         }
         for (int32_t kk = r0[2]; kk <= r1[2]; kk++)
@@ -879,13 +898,13 @@ int as_bvh_segment_nearest(const as_bvh *b, const double a[3], const double c[3]
     as_sub3(c, a, d);
     for (int k = 0; k < 3; k++) {
         inv[k] = d[k] != 0 ? 1.0 / d[k] : 0.0;
-        mag = fmax(mag, fmax(fabs(a[k]), fmax(fabs(c[k]), fabs(ref[k]))));
+        mag = as_dmax(mag, as_dmax(fabs(a[k]), as_dmax(fabs(c[k]), fabs(ref[k]))));
     }
     double best = INFINITY, bt = 0;
     int32_t btri = -1;
     const double tol = 1e-9 * mag;
     if (b->gside) {
-        double len = fmax(fabs(d[0]), fmax(fabs(d[1]), fabs(d[2])));
+        double len = as_dmax(fabs(d[0]), as_dmax(fabs(d[1]), fabs(d[2])));
         double np = ceil(len * b->ginv * (1 / 0.9));
         if (np < 1) np = 1;
         if (np <= AS_BVH_SEG_PIECES) {
@@ -893,40 +912,17 @@ int as_bvh_segment_nearest(const as_bvh *b, const double a[3], const double c[3]
             return btri >= 0;
         }
     }
-    double lim = INFINITY;
-    uint32_t st[AS_BVH_STACK];
-    int sp = 0;
-    if (!as_bvh_seg_box(a, d, inv, b->nodes[0].lo, b->nodes[0].hi)) return 0;
-    st[sp++] = 0;
-    while (sp > 0) {
-        uint32_t ni = st[--sp];
-        const as_bvh_node *nd = &b->nodes[ni];
-        if (as_box_d2(nd->lo, nd->hi, ref) > lim) continue;
-        if (nd->right) { /* children met by the segment, the nearer one on top */
-            const as_bvh_node *l = &b->nodes[ni + 1], *r = &b->nodes[nd->right];
-            int ml = as_bvh_seg_box(a, d, inv, l->lo, l->hi);
-            int mr = as_bvh_seg_box(a, d, inv, r->lo, r->hi);
-            if (ml && mr) {
-                double dl = as_box_d2(l->lo, l->hi, ref), dr = as_box_d2(r->lo, r->hi, ref);
-                uint32_t fi = dl <= dr ? nd->right : ni + 1, ne = dl <= dr ? ni + 1 : nd->right;
-                st[sp++] = fi;
-                st[sp++] = ne;
-            } else if (ml) {
-                st[sp++] = ni + 1;
-            } else if (mr) {
-                st[sp++] = nd->right;
-            }
-            continue;
-        }
-        for (uint32_t s = nd->begin; s < nd->begin + nd->count; s++) {
-            const double *u = b->tc + 9 * (size_t)s;
-            if (!as_bvh_seg_tri_box(a, d, inv, u, u + 3, u + 6)) continue;
-            double was = best;
-            as_near_try(b, s, a, c, d, ref, &best, &bt, &btri, x);
-            if (best != was) lim = as_near_lim(best, tol);
-        }
-    }
-    return btri >= 0;
+    as_bvh_walk w; /* the tree, pruning boxes farther from ref than the best contact */
+    memset(&w, 0, sizeof w);
+    w.mode = AS_WALK_NEAREST;
+    w.ref = ref;
+    w.best = INFINITY;
+    w.lim = INFINITY;
+    w.tol = tol;
+    w.btri = -1;
+    w.x = x;
+    as_bvh_seg_walk(b, a, c, &w);
+    return w.btri >= 0;
 }
 
 size_t as_bvh_segment_count(const as_bvh *b, const double a[3], const double c[3],
@@ -1089,21 +1085,9 @@ anistar_status as_bvh_side_grid(anistar_context *ctx, as_bvh *b, size_t max_node
     for (int pass = 0; pass < 2; pass++) {
         for (size_t t = 0; t < b->n; t++) {
             const double *tb = G.gbox + 6 * t;
-            int32_t r0[3], r1[3];
-            for (int c = 0; c < 3; c++) {
-                double tlo = tb[c], thi = tb[3 + c];
-                double m = AS_BVH_CELL_MARGIN * h;
-                /* cells i with x_i - m <= thi and x_{i+1} + m >= tlo; one more each way
-                 * against the rounding of the division, trimmed by the exact test */
-                int32_t a0 = (int32_t)floor((tlo - G.g0[c]) / h) - 2;
-                int32_t a1 = (int32_t)floor((thi - G.g0[c]) / h) + 2;
-                if (a0 < 0) a0 = 0;
-                if (a1 > ng[c] - 2) a1 = ng[c] - 2;
-                while (a0 <= a1 && as_bvh_gcoord(&G, c, a0 + 1) + m < tlo) a0++;
-                while (a1 >= a0 && as_bvh_gcoord(&G, c, a1) - m > thi) a1--;
-                r0[c] = a0;
-                r1[c] = a1;
-            }
+            int32_t r0[3], r1[3]; /* the cells whose grown box meets the triangle's */
+            for (int c = 0; c < 3; c++)
+                as_bvh_cell_range(&G, c, tb[c], tb[3 + c], &r0[c], &r1[c]);
             for (int32_t k = r0[2]; k <= r1[2]; k++)
                 for (int32_t j = r0[1]; j <= r1[1]; j++)
                     for (int32_t i = r0[0]; i <= r1[0]; i++) {

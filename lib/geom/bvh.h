@@ -164,8 +164,8 @@ size_t as_bvh_segment_count(const as_bvh *b, const double a[3], const double c[3
  * minimum of the distance (but for a segment nearly parallel to a triangle, whose
  * computed t may stray beyond the pruning margin: bvh.c). Returns 1 (x set) or 0 (no
  * triangle met). No allocation. With the side grid: the segment's cells outward from
- * ref; else the tree depth-first, nearer box first; both prune what lies farther from ref
- * than the best contact so far (with a margin far above the rounding of x).
+ * ref; else the tree's segment walk; both prune what lies farther from ref than the best
+ * contact so far (with a margin far above the rounding of x).
  */
 int as_bvh_segment_nearest(const as_bvh *b, const double a[3], const double c[3],
                            const double ref[3], double x[3]);

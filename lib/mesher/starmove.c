@@ -4,6 +4,7 @@
  */
 #include "mesher/starmove.h"
 
+#include <stddef.h>
 #include <string.h>
 
 #include "pool.h"
@@ -134,7 +135,7 @@ static anistar_status new_star(as_starset *ss, int t, int32_t w, const as_star *
  * id[j] into nw[j]. */
 typedef struct mv_round {
     as_starset *ss;
-    as_starmove *mv;
+    int32_t v; /* the site moved */
     size_t m;
     int32_t id[AS_STARMOVE_ROUND];
     as_star *nw[AS_STARMOVE_ROUND];
@@ -144,7 +145,14 @@ static anistar_status round_task(void *arg, int32_t j, int t, anistar_context *t
     (void)tctx;
     mv_round *R = arg;
     int32_t id = R->id[j];
-    return new_star(R->ss, t, id, R->ss->stars[id], id == R->mv->v ? -1 : R->mv->v, &R->nw[j]);
+    return new_star(R->ss, t, id, R->ss->stars[id], id == R->v ? -1 : R->v, &R->nw[j]);
+}
+
+/* The place of site id among the stars built ahead (mv->bid[0..nbuilt)), or -1. */
+static ptrdiff_t built_ahead(const as_starmove *mv, int32_t id) {
+    for (size_t j = 0; j < mv->nbuilt; j++)
+        if (mv->bid[j] == id) return (ptrdiff_t)j;
+    return -1;
 }
 
 /* 1 if some inconsistent facet of ss is final: none of its vertices' stars is among the
@@ -276,28 +284,25 @@ anistar_status as_starmove_apply(as_starset *ss, as_starmove *mv, int32_t v, con
     for (size_t k = 0; k < count && s == ANISTAR_OK; k++) {
         int32_t id = mv->ids[k];
         as_star *nw = NULL;
-        for (size_t j = 0; j < mv->nbuilt && !nw; j++) /* built ahead? */
-            if (mv->bid[j] == id) {
-                nw = mv->bst[j];
-                mv->bid[j] = mv->bid[--mv->nbuilt];
-                mv->bst[j] = mv->bst[mv->nbuilt];
-            }
+        ptrdiff_t ja = built_ahead(mv, id);
+        if (ja >= 0) { /* taken out of the built-ahead list */
+            nw = mv->bst[ja];
+            mv->bid[ja] = mv->bid[--mv->nbuilt];
+            mv->bst[ja] = mv->bst[mv->nbuilt];
+        }
         if (!nw && T == 1) {
             s = new_star(ss, -1, id, ss->stars[id], id == v ? -1 : v, &nw);
         } else if (!nw) {
             /* a round: this star and the next ones not built yet, in the current order */
             mv_round R;
             R.ss = ss;
-            R.mv = mv;
+            R.v = v;
             R.m = 0;
-            for (size_t q = k; q < count && R.m < AS_STARMOVE_ROUND; q++) {
-                int have = 0;
-                for (size_t j = 0; j < mv->nbuilt && !have; j++) have = mv->bid[j] == mv->ids[q];
-                if (!have) {
+            for (size_t q = k; q < count && R.m < AS_STARMOVE_ROUND; q++)
+                if (built_ahead(mv, mv->ids[q]) < 0) {
                     R.id[R.m] = mv->ids[q];
                     R.nw[R.m++] = NULL;
                 }
-            }
             s = as_pool_run(ss->pool, (int32_t)R.m, round_task, &R);
             as_starset_collect_counts(ss);
             for (size_t j = 0; j < R.m; j++) {

@@ -703,13 +703,18 @@ int as_kdtree_check(const as_kdtree *kd) {
 
 /* ---- farthest-point order ------------------------------------------------------------- */
 
-/* design (as_farthest_order): the distances to the picks are kept per point, and only
- * those within the largest of them of a new pick can shrink: a kd-tree radius query finds
- * them, and a lazy heap (an entry whose distance is no longer the point's is skipped when
- * it comes up) gives the next pick, so the order is the scan's in about n log n. Used by
- * the implicit sampler (crossing records' midpoints) and the mesh sampler (vertices). */
+/* design (as_farthest_order): every node of a kd-tree of the points keeps the largest
+ * distance to the picks among its points (with the lowest index holding it), so the next
+ * pick is the root's, and after a pick at x only the nodes whose box is not farther from x
+ * than their largest distance are entered (no point of any other can get nearer: the box
+ * distance is a lower bound of the point distances in floating point too, both summing
+ * the same per-axis squares in the same order); the entered leaves' distances are updated
+ * and the maxima recomputed on the way back. The order is the scan's. It replaced a
+ * radius query at the largest distance plus a lazy heap, whose queries returned (and
+ * sorted) ~n/k points at the k-th pick: on the shock sphere the feature sampler's 4,096
+ * picks among 32,768 candidates took 5% of a run with 2 threads, all of it serial. */
 
-/* A candidate in as_farthest_order's heap: its distance to the picks when pushed. */
+/* The largest distance to the picks in a node and the lowest index holding it. */
 typedef struct kd_far {
     double d;
     int32_t i;
@@ -720,37 +725,33 @@ static inline int kd_far_before(const kd_far *a, const kd_far *b) {
     return a->d > b->d || (a->d == b->d && a->i < b->i);
 }
 
-static int kd_far_push(anistar_context *ctx, kd_far **h, size_t *n, size_t *cap, kd_far x) {
-    if (*n == *cap && as_grow(ctx, (void **)h, cap, *n + 1, sizeof **h)) return -1;
-    kd_far *a = *h;
-    size_t k = (*n)++;
-    while (k > 0) {
-        size_t p = (k - 1) / 2;
-        if (!kd_far_before(&x, &a[p])) break;
-        a[k] = a[p];
-        k = p;
-    }
-    a[k] = x;
-    return 0;
-}
-
-static void kd_far_pop(kd_far *a, size_t *n) {
-    kd_far x = a[--*n];
-    size_t k = 0, m = *n;
-    for (;;) {
-        size_t c = 2 * k + 1;
-        if (c >= m) break;
-        if (c + 1 < m && kd_far_before(&a[c + 1], &a[c])) c++;
-        if (!kd_far_before(&a[c], &x)) break;
-        a[k] = a[c];
-        k = c;
-    }
-    if (m) a[k] = x;
-}
-
 static inline double kd_d2(const double *a, const double *b) {
     double d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
     return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+/* After a pick at x: update the distances dist (picked points: -1) of the points of node
+ * ni and its subtree that can get nearer, and the nodes' maxima fm. Depth: the tree's. */
+static void kd_far_visit(const as_kdtree *kd, uint32_t ni, const double x[3], double *dist,
+                         kd_far *fm) {
+    const as_kd_node *nd = &kd->nodes[ni];
+    if (as_kd_box_d2(nd->lo, nd->hi, x) > fm[ni].d) return;
+    if (nd->right == 0) {
+        kd_far best = {-1, INT32_MAX};
+        for (uint32_t k = nd->begin; k < nd->begin + nd->count; k++) {
+            const int32_t i = kd->pts[k].id;
+            if (dist[i] < 0) continue;
+            double d = kd_d2(kd->pts[k].x, x);
+            if (d < dist[i]) dist[i] = d;
+            kd_far c = {dist[i], i};
+            if (kd_far_before(&c, &best)) best = c;
+        }
+        fm[ni] = best;
+        return;
+    }
+    kd_far_visit(kd, ni + 1, x, dist, fm);
+    kd_far_visit(kd, nd->right, x, dist, fm);
+    fm[ni] = kd_far_before(&fm[ni + 1], &fm[nd->right]) ? fm[ni + 1] : fm[nd->right];
 }
 
 anistar_status as_farthest_order(anistar_context *ctx, const double *xyz, size_t n, size_t q,
@@ -761,54 +762,31 @@ anistar_status as_farthest_order(anistar_context *ctx, const double *xyz, size_t
     for (size_t i = 0; i < 3 * n; i++)
         if (!isfinite(xyz[i]))
             return as_fail(ctx, ANISTAR_EINVAL, "kd-tree: point %zu is not finite", i / 3);
-    anistar_status rs = ANISTAR_OK;
+    out[(*nout)++] = 0;
+    if (q == 1) return ANISTAR_OK;
     double *dist = as_alloc_array(ctx, n, sizeof *dist);
-    kd_far *heap = NULL;
-    size_t nh = 0, caph = 0;
-    as_kdtree *kd = NULL;
-    as_idlist near = {0};
     if (!dist) return as_fail(ctx, ANISTAR_ENOMEM, "kd-tree: out of memory (farthest points)");
-    for (size_t i = 0; i < n; i++) dist[i] = INFINITY;
-    if (q > 1 && (rs = as_kdtree_build(ctx, xyz, NULL, n, &kd)) != ANISTAR_OK) goto done;
-    size_t cur = 0;
-    for (size_t pick = 0; pick < q; pick++) {
-        out[(*nout)++] = (int32_t)cur;
-        const double *x = xyz + 3 * cur;
-        const double far = dist[cur]; /* every other distance is at most this */
-        dist[cur] = -1;
-        if (pick + 1 == q) break;
-        if (pick == 0) {
-            for (size_t i = 0; i < n; i++) {
-                if (dist[i] < 0) continue;
-                dist[i] = kd_d2(xyz + 3 * i, x);
-                if (kd_far_push(ctx, &heap, &nh, &caph, (kd_far){dist[i], (int32_t)i})) goto nomem;
-            }
-        } else {
-            /* the points whose distance can shrink: within sqrt(far) of the pick (a margin
-             * over the tree's rounding; the test below is the scan's) */
-            if ((rs = as_kdtree_radius(ctx, kd, x, sqrt(far) * (1 + 1e-9), &near)) != ANISTAR_OK)
-                goto done;
-            for (size_t k = 0; k < near.n; k++) {
-                size_t i = (size_t)near.ids[k];
-                if (dist[i] < 0) continue;
-                double d = kd_d2(xyz + 3 * i, x);
-                if (d < dist[i]) {
-                    dist[i] = d;
-                    if (kd_far_push(ctx, &heap, &nh, &caph, (kd_far){d, (int32_t)i})) goto nomem;
-                }
-            }
+    as_kdtree *kd = NULL;
+    kd_far *fm = NULL;
+    anistar_status rs = as_kdtree_build(ctx, xyz, NULL, n, &kd);
+    if (rs == ANISTAR_OK && !(fm = as_alloc_array(ctx, kd->nnodes, sizeof *fm)))
+        rs = as_fail(ctx, ANISTAR_ENOMEM, "kd-tree: out of memory (farthest points)");
+    if (rs == ANISTAR_OK) {
+        /* a fresh build is one tree of every point (root node 0), no buffer */
+        for (size_t i = 0; i < n; i++) dist[i] = INFINITY;
+        for (size_t k = 0; k < kd->nnodes; k++) fm[k] = (kd_far){INFINITY, 0};
+        size_t cur = 0;
+        for (;;) {
+            dist[cur] = -1;
+            if (*nout == q) break;
+            kd_far_visit(kd, kd->trees[0].node, xyz + 3 * cur, dist, fm);
+            if (fm[kd->trees[0].node].d < 0) break; /* every point picked */
+            cur = (size_t)fm[kd->trees[0].node].i;
+            out[(*nout)++] = (int32_t)cur;
         }
-        while (nh > 0 && dist[heap[0].i] != heap[0].d) kd_far_pop(heap, &nh);
-        if (nh == 0) break; /* every point picked */
-        cur = (size_t)heap[0].i;
     }
-    goto done;
-nomem:
-    rs = as_fail(ctx, ANISTAR_ENOMEM, "kd-tree: out of memory (farthest points)");
-done:
-    as_idlist_free(ctx, &near);
-    if (kd) as_kdtree_free(ctx, kd);
-    as_free(ctx, heap, caph * sizeof *heap);
+    if (kd) as_free(ctx, fm, kd->nnodes * sizeof *fm);
+    as_kdtree_free(ctx, kd);
     as_free(ctx, dist, n * sizeof *dist);
     return rs;
 }

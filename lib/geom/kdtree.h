@@ -131,10 +131,9 @@ anistar_status as_kdtree_box_any(anistar_context *ctx, const as_kdtree *kd, cons
  * nearest point picked so far is largest, ties to the lowest index, until q points are
  * picked or all are; *nout receives how many (out holds q entries, or n when q > n). The
  * same order as the scan that updates every distance after each pick, in about
- * O(n log n) for spread points: after a pick at squared distance D from the others, only
- * the points within sqrt(D) of it can get nearer (a radius query), and the next pick comes
- * off a heap of (distance, index). ANISTAR_OK, ANISTAR_EINVAL (non-finite coordinates) or
- * ANISTAR_ENOMEM.
+ * O(n log n) for spread points: a kd-tree's nodes keep their points' largest distance, so
+ * a pick enters only the nodes where a distance can shrink and the next pick is the
+ * root's. ANISTAR_OK, ANISTAR_EINVAL (non-finite coordinates) or ANISTAR_ENOMEM.
  */
 anistar_status as_farthest_order(anistar_context *ctx, const double *xyz, size_t n, size_t q,
                                  int32_t *out, size_t *nout);

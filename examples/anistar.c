@@ -1329,9 +1329,11 @@ static void help(void) {
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"
            "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol|.solb[,rb=R] (meshes)\n"
-           "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R (blending),\n"
-           "  grad=G (gradation, G > 1: sizes grow by at most 1 + l ln G over metric length l;\n"
-           "  sol takes grad=G too)\n\n"
+           "  every field but euclidean and uniform also takes grad=G (gradation, G > 1:\n"
+           "  sizes grow by at most about 1 + l ln G over metric length l; for fields that\n"
+           "  jump, e.g. the curvature of surfaces joined with continuous tangents only);\n"
+           "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R\n"
+           "  (blending); on images rb=R\n\n"
            "built-in surfaces:\n");
     const char *name, *desc;
     for (size_t i = 0; anistar_surface_builtin_info(i, &name, &desc) == ANISTAR_OK; i++)

@@ -737,6 +737,17 @@ static double min_rel_eig(const double P[6], const double M[6]) {
     return fmin(w[0], fmin(w[1], w[2]));
 }
 
+/* nv random anisotropic tensors (eigenvalues 1 to 10^6, random frames) from seed. */
+static void random_tensors(double *t, size_t nv, uint64_t seed) {
+    tu_rng r = {seed};
+    for (size_t v = 0; v < nv; v++) {
+        double q[9], e[3];
+        tu_random_rotation(&r, q);
+        for (int k = 0; k < 3; k++) e[k] = pow(10, tu_rng_range(&r, 0, 3));
+        as_field_tensor(q, e, t + 6 * v);
+    }
+}
+
 /* The gradation (grad=G) on a real mesh (the fandisk's vertices and triangles) with random
  * anisotropic vertex tensors (eigenvalues 1 to 10^6, random frames: jumps everywhere):
  * afterwards every directed edge i -> j satisfies M_j >= eta^2 M_i, eta = 1 / (1 + l ln G)
@@ -752,13 +763,7 @@ static void test_gradation(void **state) {
     double *t0 = malloc(mi.nv * 6 * sizeof(double)), *t = malloc(mi.nv * 6 * sizeof(double));
     assert_non_null(t0);
     assert_non_null(t);
-    tu_rng r = {7};
-    for (size_t v = 0; v < mi.nv; v++) {
-        double q[9], e[3];
-        tu_random_rotation(&r, q);
-        for (int k = 0; k < 3; k++) e[k] = pow(10, tu_rng_range(&r, 0, 3));
-        as_field_tensor(q, e, t0 + 6 * v);
-    }
+    random_tensors(t0, mi.nv, 7);
     memcpy(t, t0, mi.nv * 6 * sizeof(double));
     const double G = 1.3;
     assert_int_equal(as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, G), ANISTAR_OK);
@@ -793,11 +798,147 @@ static void test_gradation(void **state) {
     assert_true(changed > mi.nv / 2);
     assert_true(worst >= 1 - 2e-3);
     assert_true(least >= 1 - 1e-9);
+    /* the edge-list form over the triangles' edges in the same order (the form that skips
+     * the edges whose ends did not change) gives the same tensors, bit for bit */
+    double *t2 = malloc(mi.nv * 6 * sizeof(double));
+    int32_t *edges = malloc(mi.nt * 6 * sizeof(int32_t));
+    assert_non_null(t2);
+    assert_non_null(edges);
+    random_tensors(t2, mi.nv, 7);
+    for (size_t f = 0; f < mi.nt; f++)
+        for (int k = 0; k < 3; k++) {
+            edges[6 * f + 2 * k] = mi.tri[3 * f + k];
+            edges[6 * f + 2 * k + 1] = mi.tri[3 * f + (k + 1) % 3];
+        }
+    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 0), ANISTAR_OK);
+    assert_memory_equal(t2, t, mi.nv * 6 * sizeof(double));
+    /* keep_frame: from the same random tensors, each M_j keeps its eigenvectors; along
+     * each of them u^T M_j u >= eta^2 u^T M_i u for every edge (to 1e-3), every tensor is
+     * at least its input, and no eigenvalue exceeds the input's largest (the intersection
+     * above inflates: its largest eigenvalue is printed) */
+    double lmax_in = 0, lmax_kf = 0, lmax_int = 0, worst_kf = INFINITY, least_kf = INFINITY;
+    random_tensors(t2, mi.nv, 7);
+    for (size_t v = 0; v < mi.nv; v++) {
+        double w[3], V[9];
+        assert_int_equal(as_sym3_eigen(t2 + 6 * v, w, V), 0);
+        lmax_in = fmax(lmax_in, w[2]);
+    }
+    double *t3 = malloc(mi.nv * 6 * sizeof(double));
+    assert_non_null(t3);
+    memcpy(t3, t2, mi.nv * 6 * sizeof(double));
+    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 1), ANISTAR_OK);
+    for (size_t v = 0; v < mi.nv; v++) {
+        double w[3], V[9];
+        assert_int_equal(as_sym3_eigen(t2 + 6 * v, w, V), 0);
+        lmax_kf = fmax(lmax_kf, w[2]);
+        assert_int_equal(as_sym3_eigen(t + 6 * v, w, V), 0);
+        lmax_int = fmax(lmax_int, w[2]);
+        least_kf = fmin(least_kf, min_rel_eig(t3 + 6 * v, t2 + 6 * v));
+    }
+    for (size_t e = 0; e < 3 * mi.nt; e++)
+        for (int dir = 0; dir < 2; dir++) {
+            int32_t i = edges[2 * e + dir], j = edges[2 * e + 1 - dir];
+            const double *M = t2 + 6 * (size_t)i, *a = mi.xyz + 3 * (size_t)i,
+                         *b = mi.xyz + 3 * (size_t)j;
+            double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+            double l2 = M[0] * d[0] * d[0] + M[3] * d[1] * d[1] + M[5] * d[2] * d[2] +
+                        2 * (M[1] * d[0] * d[1] + M[2] * d[0] * d[2] + M[4] * d[1] * d[2]);
+            double eta = 1 / (1 + sqrt(l2) * log(G)), w[3], V[9];
+            assert_int_equal(as_sym3_eigen(t2 + 6 * (size_t)j, w, V), 0);
+            for (int k = 0; k < 3; k++) {
+                const double *u = V + 3 * k;
+                double qi = M[0] * u[0] * u[0] + M[3] * u[1] * u[1] + M[5] * u[2] * u[2] +
+                            2 * (M[1] * u[0] * u[1] + M[2] * u[0] * u[2] + M[4] * u[1] * u[2]);
+                worst_kf = fmin(worst_kf, w[k] / (eta * eta * qi));
+            }
+        }
+    print_message("gradation 1.3 keeping frames: edge bound %.6f along the axes, growth %.6f, "
+                  "largest eigenvalue %.4g (input %.4g; intersections: %.4g)\n",
+                  worst_kf, least_kf, lmax_kf, lmax_in, lmax_int);
+    assert_true(worst_kf >= 1 - 2e-3);
+    assert_true(least_kf >= 1 - 1e-9);
+    assert_true(lmax_kf <= lmax_in * (1 + 1e-9));
+    free(t3);
+    free(t2);
+    free(edges);
     memcpy(t0, t, mi.nv * 6 * sizeof(double));
     assert_int_equal(as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, G), ANISTAR_OK);
     assert_memory_equal(t0, t, mi.nv * 6 * sizeof(double));
     free(t0);
     free(t);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* The distortion between metrics a and b (gamma: the largest stretch of F_a F_b^-1 either
+ * way). */
+static double gamma_of(const double a[6], const double b[6]) {
+    return 1 / sqrt(fmin(min_rel_eig(a, b), min_rel_eig(b, a)));
+}
+
+/* grad=G on a field given at every point: a capsule (a cylinder of radius 1/2 between two
+ * half-spheres, f = max(|x| - 1, 0)^2 + y^2 + z^2 - 1/4, continuous tangents but not
+ * curvatures) has a curvature metric that jumps across the seams x = +-1, along the axis
+ * from max(eps, 0)^2 (eps = 1/R_bound = 1/2) to 4. Graded: (1) the jump is gone — seen
+ * from either side of the seam the metrics differ by a distortion below 1.1 (ungraded: 4
+ * = the ratio of the sizes); (2) the graded field is nowhere below the ungraded one (at
+ * 400 points of S, and off S); (3) sizes grow from the seam along the cylinder as the
+ * gradation allows: the axial eigenvalue stays within the bound grown from the cap's 4 by
+ * 1 + l ln G over the M-length l along the axis (with the sample's spacing as slack), and
+ * it is below 4 (the field is graded, not flattened) halfway. */
+static void test_gradation_analytic(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s = expression(ctx, "max(abs(x)-1,0)^2+y^2+z^2-0.25", 2);
+    as_field *g = field(ctx, s, "curvature,grad=1.3"), *u = field(ctx, s, "curvature");
+    assert_non_null(g->gblend);
+    const double x0 = 1 - 1e-7, x1 = 1 + 1e-7;
+    double a[6], b[6], ua[6], ub[6];
+    const double pa[3] = {x0, 0.5, 0}, pb[3] = {x1, 0.5, 0};
+    assert_int_equal(as_field_eval(ctx, g, pa, a), ANISTAR_OK);
+    assert_int_equal(as_field_eval(ctx, g, pb, b), ANISTAR_OK);
+    assert_int_equal(as_field_eval(ctx, u, pa, ua), ANISTAR_OK);
+    assert_int_equal(as_field_eval(ctx, u, pb, ub), ANISTAR_OK);
+    double gg = gamma_of(a, b), gu = gamma_of(ua, ub);
+    print_message("capsule seam: gamma %.4f graded, %.4f ungraded\n", gg, gu);
+    assert_true(gu > 3.9);
+    assert_true(gg < 1.1);
+    /* (2) never below the ungraded field: on S (the sampler's points) and off S */
+    as_point_sample smp;
+    assert_int_equal(as_surface_sample(ctx, s, 400, &smp), ANISTAR_OK);
+    double least = INFINITY;
+    for (size_t i = 0; i < smp.n; i++)
+        for (int off = 0; off < 2; off++) {
+            double q[3] = {smp.points[3 * i], smp.points[3 * i + 1] + 0.05 * off,
+                           smp.points[3 * i + 2]};
+            double mg[6], mu[6];
+            assert_int_equal(as_field_eval(ctx, g, q, mg), ANISTAR_OK);
+            assert_int_equal(as_field_eval(ctx, u, q, mu), ANISTAR_OK);
+            double e = min_rel_eig(mu, mg);
+            if (e < least) least = e;
+        }
+    as_surface_sample_free(ctx, &smp);
+    assert_true(least >= 1 - 1e-9);
+    /* (3) growth along the cylinder from the seam x = 1 (the axial size h = 1/sqrt(m11)
+     * starts at 1/2 and grows at most by ln G per unit of M-length) */
+    double h = 0.5, worst = 0;
+    const double lg = log(1.3), dx = 1e-3;
+    for (double x = 1; x > 0; x -= dx) {
+        double q[3] = {x - dx, 0.5, 0}, m[6];
+        assert_int_equal(as_field_eval(ctx, g, q, m), ANISTAR_OK);
+        h += dx * lg; /* dh / dx = ln G: the size-space form of 1 + l ln G */
+        double hx = 1 / sqrt(m[0]);
+        if (hx / h > worst) worst = hx / h;
+    }
+    double mid[6];
+    const double pm[3] = {0, 0.5, 0};
+    assert_int_equal(as_field_eval(ctx, g, pm, mid), ANISTAR_OK);
+    print_message("capsule cylinder: axial size / graded bound at most %.3f; at x = 0: "
+                  "m11 = %.3f (ungraded 0.25, the cap 4)\n", worst, mid[0]);
+    assert_true(worst < 1.15);
+    assert_true(mid[0] < 3.5 && mid[0] > 0.25);
+    as_field_free(g);
+    as_field_free(u);
     as_surface_free(s);
     anistar_context_free(ctx);
 }
@@ -819,7 +960,7 @@ static void test_spec_errors(void **state) {
         {"curvature,eps=", ANISTAR_EINVAL, "not a finite number"},
         {"curvature,eps=nan", ANISTAR_EINVAL, "not a finite number"},
         {"curvature,foo=1", ANISTAR_EINVAL, "unknown option 'foo'"},
-        {"curvature,phi=1", ANISTAR_EINVAL, "unknown option 'phi' (options: eps, en, power)"},
+        {"curvature,phi=1", ANISTAR_EINVAL, "unknown option 'phi' (options: eps, en, power, grad)"},
         {"curvature,eps=1,eps=2", ANISTAR_EINVAL, "given twice"},
         {"curvature,eps", ANISTAR_EINVAL, "OPTION=VALUE"},
         {"curvature:x", ANISTAR_EINVAL, "takes no ':'"},
@@ -829,7 +970,8 @@ static void test_spec_errors(void **state) {
         {"shock,phi=-1", ANISTAR_EINVAL, "phi must be >= 0"},
         {"curvature,grad=1", ANISTAR_EINVAL, "grad must be > 1"},
         {"sol:f.sol,grad=0.5", ANISTAR_EINVAL, "grad must be > 1, got 0.5"},
-        {"shock,grad=1.3", ANISTAR_EINVAL, "unknown option 'grad'"},
+        {"euclidean,grad=1.3", ANISTAR_EINVAL, "unknown option 'grad'"},
+        {"shock,grad=0.9", ANISTAR_EINVAL, "grad must be > 1"},
         {"gradient", ANISTAR_EINVAL, "needs an argument"},
         {"gradient:", ANISTAR_EINVAL, "needs an argument"},
         {"hessian: ,eps=1", ANISTAR_EINVAL, "needs an argument"},
@@ -866,9 +1008,18 @@ static void test_spec_errors(void **state) {
     assert_int_equal(as_field_from_spec(ctx, s, "sol:file.sol", &f), ANISTAR_EINVAL);
     assert_null(f);
     assert_non_null(strstr(anistar_last_error(ctx), "not supported yet for implicit surfaces"));
-    /* the gradation is for triangle meshes (their vertex tensors) */
-    assert_int_equal(as_field_from_spec(ctx, s, "curvature,grad=1.3", &f), ANISTAR_EINVAL);
-    assert_non_null(strstr(anistar_last_error(ctx), "triangle-mesh surfaces only"));
+    /* the sphere's curvature field is constant: the gradation raises nothing and the
+     * field stays exactly the ungraded one (no blend kept) */
+    {
+        as_field *g = field(ctx, s, "curvature,grad=1.3"), *u = field(ctx, s, "curvature");
+        assert_null(g->gblend);
+        double mg[6], mu[6];
+        assert_int_equal(as_field_eval(ctx, g, p, mg), ANISTAR_OK);
+        assert_int_equal(as_field_eval(ctx, u, p, mu), ANISTAR_OK);
+        assert_memory_equal(mg, mu, sizeof mg);
+        as_field_free(g);
+        as_field_free(u);
+    }
     /* uniform */
     f = field(ctx, s, "uniform,h=0.5");
     double m[6];
@@ -974,7 +1125,7 @@ int main(void) {
         cmocka_unit_test(test_shock),            cmocka_unit_test(test_hessian),
         cmocka_unit_test(test_all_kinds_spd),    cmocka_unit_test(test_anisotropy_clamp),
         cmocka_unit_test(test_singular_points),  cmocka_unit_test(test_custom_errors),
-        cmocka_unit_test(test_gradation),
+        cmocka_unit_test(test_gradation),        cmocka_unit_test(test_gradation_analytic),
         cmocka_unit_test(test_spec_errors),      cmocka_unit_test(test_public_api),
         cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_hessian_zero),
         cmocka_unit_test(test_builtin_overflow), cmocka_unit_test(test_sol_errors),

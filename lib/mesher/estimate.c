@@ -128,6 +128,7 @@ typedef struct as_est {
     const as_mesher_params *prm;
     const as_point_sample *smp;
     double *dens;     /* per sample point: vertices per unit area (-1: a singular point) */
+    uint8_t *bygamma; /* per sample point: 1 when the distortion radius set its size */
     as_idlist *fids;  /* per thread slot: the feature-size queries' scratch */
 } as_est;
 
@@ -158,13 +159,20 @@ static anistar_status est_task(void *arg, int32_t i, int t, anistar_context *ctx
     double dr;
     if ((s = distortion_radius(ss, ctx, prm, p, &mf, t1, t2, sqrt(3.0) * h, &dr)) != ANISTAR_OK)
         return s;
-    if (dr / sqrt(3.0) < h) h = dr / sqrt(3.0);
+    int bygamma = 0;
+    if (dr / sqrt(3.0) < h) {
+        h = dr / sqrt(3.0);
+        bygamma = 1;
+    }
     double lfs;
     int exact;
     if ((s = as_feature_lfs(ctx, &ss->feat, &mf, p, h / ss->alpha, &E->fids[t], &lfs, &exact)) !=
         ANISTAR_OK)
         return s;
-    if (ss->alpha * lfs < h) h = ss->alpha * lfs;
+    if (ss->alpha * lfs < h) {
+        h = ss->alpha * lfs;
+        bygamma = 0;
+    }
     double d = dens / (ideal * h * h);
     /* the Euclidean bounds: edges of at least hmin and at most hmax (an equilateral
      * triangle of side L has circumradius L / sqrt 3) */
@@ -173,11 +181,12 @@ static anistar_status est_task(void *arg, int32_t i, int t, anistar_context *ctx
     if (ss->hmax > 0 && d < 3 / (ideal * ss->hmax * ss->hmax))
         d = 3 / (ideal * ss->hmax * ss->hmax);
     E->dens[i] = d;
+    E->bygamma[i] = (uint8_t)bygamma;
     return ANISTAR_OK;
 }
 
 anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
-                                  double *bytes) {
+                                  double *bytes, double *bygamma) {
     anistar_context *ctx = ss->ctx;
     const size_t bytes0 = ctx->bytes; /* before the estimate's own arrays */
     *vertices = 0;
@@ -191,7 +200,8 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
     size_t *count = as_alloc_array(ctx, nc, sizeof *count);
     double *dens = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *dens);
     as_idlist *fids = as_alloc_array(ctx, (size_t)T, sizeof *fids);
-    if (!count || !dens || !fids) {
+    uint8_t *bg = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *bg);
+    if (!count || !dens || !fids || !bg) {
         s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (estimate)");
         goto done;
     }
@@ -201,20 +211,22 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
     /* design: the sample points' densities on the threads (each reads only the surface,
      * the field and the feature points), then their sum in the points' order: the same
      * bits for any thread count */
-    as_est E = {ss, prm, &smp, dens, fids};
+    as_est E = {ss, prm, &smp, dens, bg, fids};
     if (ss->pool) {
         s = as_pool_run(ss->pool, (int32_t)smp.n, est_task, &E);
     } else {
         for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) s = est_task(&E, (int32_t)i, 0, ctx);
     }
-    double sum = 0;
+    double sum = 0, sumg = 0;
     for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) {
         if (dens[i] < 0) continue;
         double w = smp.area[smp.component[i]] / (double)count[smp.component[i]];
         sum += w * dens[i];
+        if (bg[i]) sumg += w * dens[i];
     }
     if (s == ANISTAR_OK) {
         *vertices = AS_ESTIMATE_FILL * sum;
+        *bygamma = sum > 0 ? sumg / sum : 0;
         *bytes = (double)bytes0 + AS_ESTIMATE_BYTES_PER_VERTEX * *vertices;
     }
 done:
@@ -222,6 +234,7 @@ done:
         for (int t = 0; t < T; t++) as_idlist_free(ctx, &fids[t]);
     as_free(ctx, fids, (size_t)T * sizeof *fids);
     as_free(ctx, dens, (smp.n ? smp.n : 1) * sizeof *dens);
+    as_free(ctx, bg, (smp.n ? smp.n : 1) * sizeof *bg);
     as_free(ctx, count, nc * sizeof *count);
     as_surface_sample_free(ctx, &smp);
     return s;

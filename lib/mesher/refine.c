@@ -1718,13 +1718,22 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     int fixes = 0;             /* passes that inserted the points the final checks found */
     double t_check = 0;        /* the last pass of the final checks */
     /* design: the up-front estimate refuses at once a run that cannot fit (DESIGN.md 4.5) */
+    double bygamma = 0;
     if (s == ANISTAR_OK)
-        s = as_mesher_estimate(ss, prm, &R.cnt.estimate_vertices, &R.cnt.estimate_bytes);
+        s = as_mesher_estimate(ss, prm, &R.cnt.estimate_vertices, &R.cnt.estimate_bytes,
+                               &bygamma);
+    /* design: when gamma0 asks for most of them, the metric varies faster than its own
+     * size; where it jumps (surfaces joined with continuous tangents only: max/min of
+     * smooth functions) no r0 helps, the gradation does: the message says so */
     if (s == ANISTAR_OK && R.cnt.estimate_vertices > (double)maxv)
         s = as_fail(ctx, ANISTAR_EINVAL,
                     "mesher: refused: the metric and r0 ask for about %.3g vertices (%.3g GB), "
-                    "more than max_vertices %lld; raise r0 or max_vertices",
-                    R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv);
+                    "more than max_vertices %lld; raise r0 or max_vertices%s",
+                    R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv,
+                    bygamma > 0.5 ? "; most of them for gamma0: the metric varies faster than "
+                                    "its own sizes (where it jumps, grade it: grad=G in the "
+                                    "metric spec, e.g. curvature,grad=1.3, or raise gamma0)"
+                                  : "");
     if (s == ANISTAR_OK) s = initial_points(&R);
     for (size_t k = 0; s == ANISTAR_OK && k < prm->nseeds; k++) {
         const double *p = prm->seeds + 3 * k;

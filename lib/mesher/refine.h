@@ -68,11 +68,12 @@ anistar_status as_refine_check_point(as_starset *ss, const double p[3], int32_t 
 
 /*
  * The up-front estimate (DESIGN.md 4.5) of the run's output vertex count and peak memory
- * from the metric field and the sizing field alone (estimate.c). OK, or the surface's or
- * the field's errors, ENOMEM.
+ * from the metric field and the sizing field alone (estimate.c), and the share of those
+ * vertices whose size the distortion radius (gamma0) sets. OK, or the surface's or the
+ * field's errors, ENOMEM.
  */
 anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, double *vertices,
-                                  double *bytes);
+                                  double *bytes, double *bygamma);
 
 /* Rule-2 violation: rho/rho0 if the radius-edge ratio in M_v exceeds rho0, else 0 (0 for a
  * facet below ss->hmin, as_facet_below_hmin). */

@@ -723,15 +723,16 @@ static anistar_status predict_restricted(refiner *R, anistar_context *ctx, const
 /*
  * Is p a valid refinement point for a facet of radius rv (paper 4.2)? We simulate p's
  * star and reject p when one of its restricted facets smaller than beta * rv (radius in
- * M_p) is predicted inconsistent: a vertex is a corner or pole, or the facet would not be
- * restricted in the star of another vertex.
+ * M_p) is predicted inconsistent: a vertex is a corner or pole (*pole = 1: such facets
+ * are looked for first), or the facet would not be restricted in the star of another
+ * vertex.
  * design (replaces the hitting-set test, DESIGN.md 4.5): only the facets of p's own
  * predicted surface star are examined; facets with p that other stars would gain but p's
  * star would lack are not simulated (they are caught by rule 3 later).
  */
 /* t: the thread slot whose workspace simulates (-1: the caller's); ctx: its context */
 static anistar_status valid_point_on(refiner *R, int t, anistar_context *ctx, const double p[3],
-                                     double rv, int *valid) {
+                                     double rv, int *valid, int *pole) {
     as_starset *ss = R->ss;
     as_metric_frame mf;
     anistar_status s = as_starset_metric_in(ss, ctx, p, &mf);
@@ -741,16 +742,23 @@ static anistar_status valid_point_on(refiner *R, int t, anistar_context *ctx, co
     if (s != ANISTAR_OK) return s;
     int32_t pid = ss->n;
     *valid = 1;
+    *pole = 0;
+    for (int32_t i = 0; i < sp->nrf; i++) {
+        const as_rfacet *f = &sp->rf[i];
+        if (f->r >= R->prm->beta * rv) continue;
+        for (int k = 0; k < 3; k++)
+            if (f->g[k] != pid && f->g[k] < ss->first_site) {
+                *valid = 0;
+                *pole = 1;
+                return ANISTAR_OK;
+            }
+    }
     for (int32_t i = 0; i < sp->nrf && *valid; i++) {
         const as_rfacet *f = &sp->rf[i];
         if (f->r >= R->prm->beta * rv) continue;
         for (int k = 0; k < 3 && *valid; k++) {
             int32_t w = f->g[k];
             if (w == pid) continue;
-            if (w < ss->first_site) {
-                *valid = 0;
-                break;
-            }
             int res;
             if ((s = predict_restricted(R, ctx, f, pid, p, w, &res)) != ANISTAR_OK) return s;
             if (!res) *valid = 0;
@@ -767,6 +775,7 @@ typedef struct as_pcand {
     int skip;           /* the try gives no candidate (no projection, outside, a site) */
     double q[3];
     int valid;
+    int pole;           /* invalid for a small facet with a pole or corner (valid_point_on) */
     anistar_status st;  /* the candidate's error (its message in msg) */
     char msg[AS_ERRMSG_SIZE];
 } as_pcand;
@@ -806,7 +815,7 @@ static anistar_status pick_one(as_pround *P, as_pcand *c, int t, anistar_context
             return ANISTAR_OK;
         }
     }
-    return valid_point_on(R, t, tctx, c->q, f->r, &c->valid);
+    return valid_point_on(R, t, tctx, c->q, f->r, &c->valid, &c->pole);
 }
 
 /* A candidate's errors stay with it: the serial loop would report one only if no earlier
@@ -816,6 +825,7 @@ static anistar_status pick_task(void *arg, int32_t k, int t, anistar_context *tc
     as_pcand *c = &P->c[k];
     c->skip = 0;
     c->valid = 0;
+    c->pole = 0;
     c->st = pick_one(P, c, t, tctx);
     if (c->st != ANISTAR_OK) memcpy(c->msg, tctx->last_error, sizeof c->msg);
     return ANISTAR_OK;
@@ -879,6 +889,13 @@ static anistar_status pick_valid_pool(refiner *R, const as_rfacet *f, const as_m
             if (R->pcand[k].st != ANISTAR_OK)
                 return as_fail(R->ctx, R->pcand[k].st, "%s", R->pcand[k].msg);
             if (R->pcand[k].valid) win = k;
+            else if (R->pcand[k].is_center && R->pcand[k].pole) {
+                /* the center fails for a pole: no try (pick_valid_on) */
+                R->rng = rng0;
+                R->cnt.pick_failures++;
+                memcpy(out, f->c, 3 * sizeof(double));
+                return ANISTAR_OK;
+            }
         }
         /* the counts and the random state as the serial loop leaves them */
         int last = win >= 0 ? win : m - 1;
@@ -906,11 +923,22 @@ static anistar_status pick_valid_on(refiner *R, int t, anistar_context *ctx,
                                     double out[3], uint64_t *tries, uint64_t *failures) {
     as_starset *ss = R->ss;
     anistar_status s;
-    int valid = 0;
+    int valid = 0, pole = 0;
     memcpy(out, f->c, 3 * sizeof(double));
     if (!is_duplicate(ss, f->c)) {
-        if ((s = valid_point_on(R, t, ctx, f->c, f->r, &valid)) != ANISTAR_OK) return s;
+        if ((s = valid_point_on(R, t, ctx, f->c, f->r, &valid, &pole)) != ANISTAR_OK) return s;
         if (valid) return ANISTAR_OK;
+        if (pole) {
+            /* design: a center refused for a small facet with a pole (or corner) is
+             * inserted at once, without the random tries: a pole in the star means the
+             * sample does not yet separate S from the medial axis there (at a CAD
+             * crease the medial axis reaches S), a matter of density that moving the
+             * point by delta r does not change. The tries are for near-cospherical
+             * configurations, which this is not; on the hinge all 11,996 tries of
+             * such picks failed (docs/algorithm.md) */
+            (*failures)++;
+            return ANISTAR_OK;
+        }
     }
     double n[3];
     int sing = 0;
@@ -934,7 +962,7 @@ static anistar_status pick_valid_on(refiner *R, int t, anistar_context *ctx,
         if (s != ANISTAR_OK) return s;
         if (!(as_metric_dist(mf, q, f->c) <= rad)) continue;
         if (is_duplicate(ss, q)) continue;
-        if ((s = valid_point_on(R, t, ctx, q, f->r, &valid)) != ANISTAR_OK) return s;
+        if ((s = valid_point_on(R, t, ctx, q, f->r, &valid, &pole)) != ANISTAR_OK) return s;
         if (valid) {
             memcpy(out, q, sizeof q);
             return ANISTAR_OK;

@@ -1119,6 +1119,62 @@ static void test_alloc_failures(void **state) {
     }
 }
 
+/* The graded field (grad=G on a field given at every point) under allocation failures: the
+ * capsule, whose gradation raises tensors, so the sample, the graph, the gradation and the
+ * blend all allocate. Every allocation after the surface's is made to fail in turn (every
+ * one of the last 64, which are the gradation's, and every 7th before them: the sampler's
+ * allocations are tested by test_alloc_failures above): ENOMEM, nothing left allocated;
+ * with none failing the field is made and graded. */
+static void test_alloc_failures_graded(void **state) {
+    (void)state;
+    const char *src = "max(abs(x)-1,0)^2+y^2+z^2-0.25";
+    const double c[3] = {0, 0, 0};
+    long total = -1, base = -1;
+    for (int pass = 0; pass < 2; pass++) { /* counts: after the surface, and in all */
+        tu_alloc ta;
+        tu_alloc_init(&ta, -1);
+        anistar_allocator al = tu_allocator(&ta);
+        anistar_context *ctx = anistar_context_new(&al);
+        assert_non_null(ctx);
+        as_surface *s = NULL;
+        assert_int_equal(as_implicit_from_expression(ctx, src, c, 2, &s), ANISTAR_OK);
+        if (pass == 0) base = ta.count;
+        as_field *f = NULL;
+        if (pass == 1) {
+            assert_int_equal(as_field_from_spec(ctx, s, "curvature,grad=1.3", &f), ANISTAR_OK);
+            assert_non_null(f->gblend);
+            total = ta.count;
+            as_field_free(f);
+        }
+        as_surface_free(s);
+        anistar_context_free(ctx);
+        assert_int_equal(ta.live_blocks, 0);
+    }
+    assert_true(total > base);
+    long tested = 0;
+    for (long k = base; k < total; k++) {
+        if (k < total - 64 && (k - base) % 7 != 0) continue;
+        tu_alloc ta;
+        tu_alloc_init(&ta, k);
+        anistar_allocator al = tu_allocator(&ta);
+        anistar_context *ctx = anistar_context_new(&al);
+        assert_non_null(ctx);
+        as_surface *s = NULL;
+        assert_int_equal(as_implicit_from_expression(ctx, src, c, 2, &s), ANISTAR_OK);
+        as_field *f = (as_field *)1;
+        anistar_status st = as_field_from_spec(ctx, s, "curvature,grad=1.3", &f);
+        if (st != ANISTAR_ENOMEM) fail_msg("allocation %ld failing: status %d", k, (int)st);
+        assert_null(f);
+        as_surface_free(s);
+        anistar_context_free(ctx);
+        assert_int_equal(ta.live_blocks, 0);
+        assert_int_equal(ta.live_bytes, 0);
+        tested++;
+    }
+    print_message("graded field: %ld allocations after the surface's, %ld failures tested\n",
+                  total - base, tested);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_curvature_torus),  cmocka_unit_test(test_curvature_umbilic),
@@ -1127,7 +1183,8 @@ int main(void) {
         cmocka_unit_test(test_singular_points),  cmocka_unit_test(test_custom_errors),
         cmocka_unit_test(test_gradation),        cmocka_unit_test(test_gradation_analytic),
         cmocka_unit_test(test_spec_errors),      cmocka_unit_test(test_public_api),
-        cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_hessian_zero),
+        cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_alloc_failures_graded),
+        cmocka_unit_test(test_hessian_zero),
         cmocka_unit_test(test_builtin_overflow), cmocka_unit_test(test_sol_errors),
         cmocka_unit_test(test_mesher_refuses),
     };

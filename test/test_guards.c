@@ -387,7 +387,8 @@ static void test_graded_crease_metric(void **state) {
  * factor 4 in size across the seams. Ungraded, the estimate refuses the run (millions of
  * vertices, nearly all for gamma0: the distortion rule would cut the facets across the
  * seam down to hmin; run anyway it has 57,000 vertices and 54,000 inconsistent facets
- * after 60 s) and its message names the remedy; graded (grad=1.3) it is certified:
+ * after 60 s) and its message names the remedy (and, graded, does not name it again);
+ * graded (grad=1.3) it is certified:
  * closed, genus 0, consistent, every facet within r0, rho0 and gamma0 (checked
  * independently), every vertex on S, no distortion insertion, the estimate within 30%. */
 static void test_graded_capsule(void **state) {
@@ -404,6 +405,17 @@ static void test_graded_capsule(void **state) {
     assert_non_null(strstr(msg, "for gamma0"));
     assert_non_null(strstr(msg, "grad="));
     run_free(&r);
+    /* graded, with a gamma0 of 1.02 that asks for most vertices, the refusal names gamma0
+     * and does not advise grading again */
+    p.max_vertices = 100;
+    p.gamma0 = 1.02;
+    run_keep(&r, cap, "curvature,grad=1.3", &p);
+    assert_int_equal(r.st, ANISTAR_EINVAL);
+    msg = anistar_last_error(r.ctx);
+    assert_non_null(strstr(msg, "the graded metric still varies"));
+    assert_null(strstr(msg, "grad=G in the metric spec"));
+    run_free(&r);
+    as_mesher_params_default(&p);
     run_keep(&r, cap, "curvature,grad=1.3", &p);
     if (r.st != ANISTAR_OK) fail_msg("capsule graded: %s", anistar_last_error(r.ctx));
     const anistar_mesh_stats *S = &r.mesh->stats;

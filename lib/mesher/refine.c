@@ -1758,10 +1758,13 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                     "mesher: refused: the metric and r0 ask for about %.3g vertices (%.3g GB), "
                     "more than max_vertices %lld; raise r0 or max_vertices%s",
                     R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv,
-                    bygamma > 0.5 ? "; most of them for gamma0: the metric varies faster than "
-                                    "its own sizes (where it jumps, grade it: grad=G in the "
-                                    "metric spec, e.g. curvature,grad=1.3, or raise gamma0)"
-                                  : "");
+                    bygamma <= 0.5 ? ""
+                    : ss->field->grad > 0
+                        ? "; most of them for gamma0: the graded metric still varies faster "
+                          "than its own sizes (raise gamma0, or lower grad)"
+                        : "; most of them for gamma0: the metric varies faster than its own "
+                          "sizes (where it jumps, grade it: grad=G in the metric spec, e.g. "
+                          "curvature,grad=1.3, or raise gamma0)");
     if (s == ANISTAR_OK) s = initial_points(&R);
     for (size_t k = 0; s == ANISTAR_OK && k < prm->nseeds; k++) {
         const double *p = prm->seeds + 3 * k;

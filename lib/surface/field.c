@@ -1008,6 +1008,7 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
      * and the distortion rule cannot refine a jump away (docs/algorithm.md) */
     if (sp->has_grad && (st = as_field_gradation(ctx, tens, mi.xyz, mi.nt, mi.tri, sp->grad)))
         goto done;
+    if (sp->has_grad) fl->grad = sp->grad;
     double rb = sp->has_rb ? sp->rb : 0;
     if (!sp->has_rb) st = as_blend_default_radius(ctx, mi.kd, mi.xyz, nv, k, &rb);
     if (!st) st = as_blend_create(ctx, mi.kd, mi.xyz, nv, tens, rb, &fl->blend);
@@ -1221,6 +1222,7 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     if (!st && image_curv) st = fl_image_blend(ctx, s, &sp, fl);
     else if (!st && sp.has_grad) st = fl_grade_sample(ctx, s, sp.grad, fl);
+    if (!st && sp.has_grad) fl->grad = sp.grad;
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

@@ -181,6 +181,7 @@ struct anistar_metric {
     double *gxyz;            /* its points (owned, 3 * gn) */
     size_t gn;
     as_kdtree *gkd;          /* their kd-tree (owned) */
+    double grad;             /* grad=G as given (0: none) */
     double hdata;            /* the resolution of the data the field is fitted to (the
                                 automatic hmin; 0: none, the field is the user's own) */
 };

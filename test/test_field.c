@@ -810,7 +810,7 @@ static void test_gradation(void **state) {
             edges[6 * f + 2 * k] = mi.tri[3 * f + k];
             edges[6 * f + 2 * k + 1] = mi.tri[3 * f + (k + 1) % 3];
         }
-    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 0), ANISTAR_OK);
+    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 0, NULL), ANISTAR_OK);
     assert_memory_equal(t2, t, mi.nv * 6 * sizeof(double));
     /* keep_frame: from the same random tensors, each M_j keeps its eigenvectors; along
      * each of them u^T M_j u >= eta^2 u^T M_i u for every edge (to 1e-3), every tensor is
@@ -826,7 +826,7 @@ static void test_gradation(void **state) {
     double *t3 = malloc(mi.nv * 6 * sizeof(double));
     assert_non_null(t3);
     memcpy(t3, t2, mi.nv * 6 * sizeof(double));
-    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 1), ANISTAR_OK);
+    assert_int_equal(as_field_gradation_edges(ctx, t2, mi.xyz, 3 * mi.nt, edges, G, 1, NULL), ANISTAR_OK);
     for (size_t v = 0; v < mi.nv; v++) {
         double w[3], V[9];
         assert_int_equal(as_sym3_eigen(t2 + 6 * v, w, V), 0);

@@ -195,19 +195,17 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
     anistar_status s = (ss->sampler ? as_sampler_sample(ctx, ss->sampler, AS_ESTIMATE_SAMPLE, &smp)
                                     : as_surface_sample(ctx, ss->surf, AS_ESTIMATE_SAMPLE, &smp));
     if (s != ANISTAR_OK) return s;
-    const size_t nc = smp.ncomponents ? smp.ncomponents : 1;
     const int T = ss->pool ? as_pool_threads(ss->pool) : 1;
-    size_t *count = as_alloc_array(ctx, nc, sizeof *count);
+    double *aw = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *aw);
     double *dens = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *dens);
     as_idlist *fids = as_alloc_array(ctx, (size_t)T, sizeof *fids);
     uint8_t *bg = as_alloc_array(ctx, smp.n ? smp.n : 1, sizeof *bg);
-    if (!count || !dens || !fids || !bg) {
+    if (!aw || !dens || !fids || !bg) {
         s = as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (estimate)");
         goto done;
     }
-    memset(count, 0, nc * sizeof *count);
     memset(fids, 0, (size_t)T * sizeof *fids);
-    for (size_t i = 0; i < smp.n; i++) count[smp.component[i]]++;
+    if ((s = as_surface_sample_weights(ctx, &smp, aw)) != ANISTAR_OK) goto done;
     /* design: the sample points' densities on the threads (each reads only the surface,
      * the field and the feature points), then their sum in the points' order: the same
      * bits for any thread count */
@@ -220,9 +218,8 @@ anistar_status as_mesher_estimate(as_starset *ss, const as_mesher_params *prm, d
     double sum = 0, sumg = 0;
     for (size_t i = 0; i < smp.n && s == ANISTAR_OK; i++) {
         if (dens[i] < 0) continue;
-        double w = smp.area[smp.component[i]] / (double)count[smp.component[i]];
-        sum += w * dens[i];
-        if (bg[i]) sumg += w * dens[i];
+        sum += aw[i] * dens[i];
+        if (bg[i]) sumg += aw[i] * dens[i];
     }
     if (s == ANISTAR_OK) {
         *vertices = AS_ESTIMATE_FILL * sum;
@@ -235,7 +232,7 @@ done:
     as_free(ctx, fids, (size_t)T * sizeof *fids);
     as_free(ctx, dens, (smp.n ? smp.n : 1) * sizeof *dens);
     as_free(ctx, bg, (smp.n ? smp.n : 1) * sizeof *bg);
-    as_free(ctx, count, nc * sizeof *count);
+    as_free(ctx, aw, (smp.n ? smp.n : 1) * sizeof *aw);
     as_surface_sample_free(ctx, &smp);
     return s;
 }

@@ -477,8 +477,9 @@ static anistar_status fl_graded(anistar_context *ctx, const as_field *fl, const 
     double b[6], o[6];
     anistar_status st = as_blend_eval(ctx, fl->gblend, p, b);
     if (st) return st;
-    if (fl_intersect_tol(m, b, o, 0) < 0)
-        return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p, "");
+    if (fl_intersect_tol(m, b, o, 0) < 0) /* m itself is not a metric: as_field_eval's error */
+        return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p,
+                              " (eps or e_n too small or too large)");
     memcpy(m, o, sizeof o);
     return ANISTAR_OK;
 }
@@ -546,7 +547,7 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
             double e[3] = {L.e1, L.e2, fl->en};
             as_field_tensor(L.u, e, m);
         }
-        if (fl->gblend && fl_frame_ok(m) && (st = fl_graded(ctx, fl, p, m))) return st;
+        if (fl->gblend && (st = fl_graded(ctx, fl, p, m))) return st;
         if (!fl_frame_ok(m))
             return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p,
                                   " (eps or e_n too small or too large)");
@@ -761,6 +762,12 @@ static int fl_intersect(const double a[6], const double b[6], double out[6]) {
     return fl_intersect_tol(a, b, out, 1e-3);
 }
 
+/* u^T m u for the symmetric m (m11 m12 m13 m22 m23 m33). */
+static inline double sym_quad(const double m[6], const double u[3]) {
+    return m[0] * u[0] * u[0] + m[3] * u[1] * u[1] + m[5] * u[2] * u[2] +
+           2 * (m[1] * u[0] * u[1] + m[2] * u[0] * u[2] + m[4] * u[1] * u[2]);
+}
+
 /* One directed edge of the gradation: eta^2 M_i intersected into M_j (*any set when M_j
  * changes); with keep_frame, M_j's eigenvalues raised instead, each to eta^2 M_i's value
  * along its eigenvector, in M_j's own frame (see as_field_gradation_edges). */
@@ -768,9 +775,7 @@ static anistar_status grade_edge(anistar_context *ctx, double *tens, const doubl
                                  int32_t i, int32_t j, double lb, int keep_frame, int *any) {
     const double *mi = tens + 6 * (size_t)i, *xi = xyz + 3 * (size_t)i, *xj = xyz + 3 * (size_t)j;
     double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
-    double l2 = mi[0] * d[0] * d[0] + mi[3] * d[1] * d[1] + mi[5] * d[2] * d[2] +
-                2 * (mi[1] * d[0] * d[1] + mi[2] * d[0] * d[2] + mi[4] * d[1] * d[2]);
-    double eta = 1 / (1 + sqrt(fmax(l2, 0)) * lb), p[6], o[6];
+    double eta = 1 / (1 + sqrt(fmax(sym_quad(mi, d), 0)) * lb), p[6], o[6];
     for (int q = 0; q < 6; q++) p[q] = eta * eta * mi[q];
     /* design: M_j - eta^2 M_i positive definite (its leading minors) means every
      * eigenvalue of the reduction exceeds 1: M_j stays, as fl_intersect would decide,
@@ -788,9 +793,7 @@ static anistar_status grade_edge(anistar_context *ctx, double *tens, const doubl
         if (as_sym3_eigen(mj, w, v)) return fail_tensor_at(ctx, "the graded tensor is not a metric", mj, xj, "");
         int raised = 0;
         for (int k = 0; k < 3; k++) {
-            const double *u = v + 3 * k;
-            double q = p[0] * u[0] * u[0] + p[3] * u[1] * u[1] + p[5] * u[2] * u[2] +
-                       2 * (p[1] * u[0] * u[1] + p[2] * u[0] * u[2] + p[4] * u[1] * u[2]);
+            double q = sym_quad(p, v + 3 * k);
             if (q > w[k] * (1 + 1e-3)) {
                 w[k] = q;
                 raised = 1;
@@ -842,9 +845,10 @@ anistar_status as_field_gradation(anistar_context *ctx, double *tens, const doub
  * passes. */
 anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, const double *xyz,
                                         size_t ne, const int32_t *edges, double grad,
-                                        int keep_frame) {
+                                        int keep_frame, int *changed) {
     const double lb = log(grad);
     anistar_status st = ANISTAR_OK;
+    if (changed) *changed = 0;
     size_t n = 0;
     for (size_t e = 0; e < 2 * ne; e++)
         if ((size_t)edges[e] + 1 > n) n = (size_t)edges[e] + 1;
@@ -865,46 +869,52 @@ anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, cons
             any |= ci | cj;
         }
         if (!any) break;
+        if (changed) *changed = 1;
     }
     as_free(ctx, last, (n ? n : 1) * sizeof *last);
     return st;
 }
 
-/* The edges from each of the n points of kd (ids 0..n-1, coordinates xyz) to its k nearest
- * others, i < j, each pair once, in the order of i then of distance (*edges: 2 ints each,
- * allocated here; *ne of them). */
+/* The edges from each of the n points of kd (ids 0..n-1, coordinates xyz) to its
+ * AS_FIELD_GRAD_K nearest others, each pair once (kept at its smaller end when both ends
+ * list the other), in the order of i then of distance: *edges (2 ints each, room for
+ * *cap pairs, allocated here: free 2 * *cap ints), *ne of them. */
 static anistar_status knn_edges(anistar_context *ctx, const as_kdtree *kd, const double *xyz,
-                                size_t n, size_t k, int32_t **edges, size_t *ne) {
-    int32_t ids[AS_FIELD_GRAD_K + 1];
-    double d2[AS_FIELD_GRAD_K + 1];
-    if (k > AS_FIELD_GRAD_K) k = AS_FIELD_GRAD_K;
+                                size_t n, int32_t **edges, size_t *ne, size_t *cap) {
+    enum { K = AS_FIELD_GRAD_K + 1 }; /* a point's list holds itself */
+    double d2[K];
     *edges = NULL;
-    *ne = 0;
-    int32_t *e = as_alloc_array(ctx, n * k, 2 * sizeof *e);
-    if (!e) return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+    *ne = *cap = 0;
+    int32_t *nb = as_alloc_array(ctx, n, K * sizeof *nb);
+    uint8_t *got = as_alloc_array(ctx, n, sizeof *got);
+    int32_t *e = as_alloc_array(ctx, n, K * 2 * sizeof *e);
+    if (!nb || !got || !e) {
+        as_free(ctx, nb, n * K * sizeof *nb);
+        as_free(ctx, got, n * sizeof *got);
+        as_free(ctx, e, n * K * 2 * sizeof *e);
+        return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+    }
+    for (size_t i = 0; i < n; i++)
+        got[i] = (uint8_t)as_kdtree_knn(kd, xyz + 3 * i, K, nb + K * i, d2);
     size_t m = 0;
-    for (size_t i = 0; i < n; i++) {
-        size_t got = as_kdtree_knn(kd, xyz + 3 * i, k + 1, ids, d2);
-        for (size_t q = 0; q < got; q++) {
-            int32_t j = ids[q];
+    for (size_t i = 0; i < n; i++)
+        for (size_t q = 0; q < got[i]; q++) {
+            int32_t j = nb[K * i + q];
             if (j == (int32_t)i) continue;
-            /* a pair both of whose ends list the other is kept at its smaller end */
             if (j < (int32_t)i) {
-                int32_t jd[AS_FIELD_GRAD_K + 1];
-                double jd2[AS_FIELD_GRAD_K + 1];
-                size_t gj = as_kdtree_knn(kd, xyz + 3 * (size_t)j, k + 1, jd, jd2);
                 int listed = 0;
-                for (size_t r = 0; r < gj && !listed; r++) listed = jd[r] == (int32_t)i;
+                for (size_t r = 0; r < got[j] && !listed; r++) listed = nb[K * (size_t)j + r] == (int32_t)i;
                 if (listed) continue;
             }
-            if (m == n * k) break;
             e[2 * m] = (int32_t)i;
             e[2 * m + 1] = j;
             m++;
         }
-    }
+    as_free(ctx, nb, n * K * sizeof *nb);
+    as_free(ctx, got, n * sizeof *got);
     *edges = e;
     *ne = m;
+    *cap = n * K;
     return ANISTAR_OK;
 }
 
@@ -1048,10 +1058,10 @@ static anistar_status fl_image_blend(anistar_context *ctx, const as_surface *s,
      * they are blended, as a triangle mesh's vertex tensors are along its edges */
     if (!st && sp->has_grad) {
         int32_t *edges = NULL;
-        size_t ne = 0;
-        st = knn_edges(ctx, fl->bkd, fl->bxyz, fl->bn, AS_FIELD_GRAD_K, &edges, &ne);
-        if (!st) st = as_field_gradation_edges(ctx, tens, fl->bxyz, ne, edges, sp->grad, 1);
-        as_free(ctx, edges, fl->bn * AS_FIELD_GRAD_K * 2 * sizeof *edges);
+        size_t ne = 0, cap = 0;
+        st = knn_edges(ctx, fl->bkd, fl->bxyz, fl->bn, &edges, &ne, &cap);
+        if (!st) st = as_field_gradation_edges(ctx, tens, fl->bxyz, ne, edges, sp->grad, 1, NULL);
+        as_free(ctx, edges, cap * 2 * sizeof *edges);
     }
     double rb = sp->has_rb ? sp->rb : 0;
     if (!st && !sp->has_rb) st = as_blend_default_radius(ctx, fl->bkd, fl->bxyz, fl->bn, AS_JET_K2, &rb);
@@ -1095,18 +1105,16 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
     anistar_status st = as_surface_sample(ctx, s, AS_FIELD_SAMPLE_POINTS, &pre);
     if (st) return st;
     double integral = 0;
-    size_t *per = as_alloc_array(ctx, pre.ncomponents, sizeof *per);
-    if (!per) st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
-    for (size_t i = 0; i < pre.ncomponents && !st; i++) per[i] = 0;
-    for (size_t i = 0; i < pre.n && !st; i++) per[pre.component[i]]++;
+    double *aw = as_alloc_array(ctx, pre.n, sizeof *aw);
+    if (!aw) st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+    if (!st) st = as_surface_sample_weights(ctx, &pre, aw);
     for (size_t i = 0; i < pre.n && !st; i++) {
         double m[6], w[3], v[9];
         if ((st = as_field_eval(ctx, fl, pre.points + 3 * i, m))) break;
         if (as_sym3_eigen(m, w, v)) continue;
-        double lmax = fmax(w[0], fmax(w[1], w[2]));
-        integral += pre.area[pre.component[i]] / (double)per[pre.component[i]] * lmax;
+        integral += aw[i] * w[2]; /* ascending: the largest */
     }
-    as_free(ctx, per, pre.ncomponents * sizeof *per);
+    as_free(ctx, aw, pre.n * sizeof *aw);
     as_surface_sample_free(ctx, &pre);
     if (st) return st;
     double want = AS_FIELD_GRAD_DENSITY * integral;
@@ -1116,20 +1124,15 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
     if ((st = as_surface_sample(ctx, s, n, &smp))) return st;
     n = smp.n;
     double *tens = as_alloc_array(ctx, n, 6 * sizeof(double));
-    double *raw = as_alloc_array(ctx, n, 6 * sizeof(double));
     int32_t *edges = NULL;
-    size_t ne = 0;
+    size_t ne = 0, cap = 0;
     as_kdtree *kd = NULL;
-    if (!tens || !raw) st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+    int raised = 0;
+    if (!tens) st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
     for (size_t i = 0; i < n && !st; i++) st = as_field_eval(ctx, fl, smp.points + 3 * i, tens + 6 * i);
-    if (!st) {
-        memcpy(raw, tens, n * 6 * sizeof(double));
-        st = as_kdtree_build(ctx, smp.points, NULL, n, &kd);
-    }
-    if (!st) st = knn_edges(ctx, kd, smp.points, n, AS_FIELD_GRAD_K, &edges, &ne);
-    if (!st) st = as_field_gradation_edges(ctx, tens, smp.points, ne, edges, grad, 1);
-    size_t raised = 0;
-    for (size_t i = 0; i < n && !st; i++) raised += memcmp(tens + 6 * i, raw + 6 * i, 6 * sizeof(double)) != 0;
+    if (!st) st = as_kdtree_build(ctx, smp.points, NULL, n, &kd);
+    if (!st) st = knn_edges(ctx, kd, smp.points, n, &edges, &ne, &cap);
+    if (!st) st = as_field_gradation_edges(ctx, tens, smp.points, ne, edges, grad, 1, &raised);
     double rb = 0;
     if (!st && raised) st = as_blend_default_radius(ctx, kd, smp.points, n, AS_JET_K2, &rb);
     if (!st && raised) st = as_blend_create(ctx, kd, smp.points, n, tens, rb, &fl->gblend);
@@ -1141,9 +1144,8 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
         smp.points = NULL;
         kd = NULL;
     }
-    as_free(ctx, edges, n * AS_FIELD_GRAD_K * 2 * sizeof *edges);
+    as_free(ctx, edges, cap * 2 * sizeof *edges);
     as_free(ctx, tens, n * 6 * sizeof(double));
-    as_free(ctx, raw, n * 6 * sizeof(double));
     as_kdtree_free(ctx, kd);
     as_surface_sample_free(ctx, &smp);
     return st;

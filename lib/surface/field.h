@@ -149,10 +149,11 @@ anistar_status as_field_gradation(anistar_context *ctx, double *tens, const doub
  * whose frames turn are not idempotent, and repeated over passes they inflate every
  * eigenvalue (on the paper's torus, sampled, the normal eigenvalue 1 became 8.7 and the
  * mesh 7 times larger); raising eigenvalues in place cannot exceed the largest eta^2
- * u^T M_i u met, so the field's largest eigenvalue never grows. */
+ * u^T M_i u met, so the field's largest eigenvalue never grows. *changed (if not NULL):
+ * 1 if some tensor changed. */
 anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, const double *xyz,
                                         size_t ne, const int32_t *edges, double grad,
-                                        int keep_frame);
+                                        int keep_frame, int *changed);
 /* grad=G on fields given at every point and on images' lattices (field.c,
  * fl_grade_sample): the neighbours of a point in the gradation graph, the sample points
  * per unit of (area x largest eigenvalue of M), and the bounds of the sample's size. */

@@ -180,6 +180,19 @@ void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp) {
     memset(smp, 0, sizeof *smp);
 }
 
+anistar_status as_surface_sample_weights(anistar_context *ctx, const as_point_sample *smp,
+                                         double *w) {
+    const size_t nc = smp->ncomponents ? smp->ncomponents : 1;
+    size_t *count = as_alloc_array(ctx, nc, sizeof *count);
+    if (!count) return as_fail(ctx, ANISTAR_ENOMEM, "surface: out of memory (sample weights)");
+    memset(count, 0, nc * sizeof *count);
+    for (size_t i = 0; i < smp->n; i++) count[smp->component[i]]++;
+    for (size_t i = 0; i < smp->n; i++)
+        w[i] = smp->area[smp->component[i]] / (double)count[smp->component[i]];
+    as_free(ctx, count, nc * sizeof *count);
+    return ANISTAR_OK;
+}
+
 /* ---- side ----------------------------------------------------------------------- */
 
 static inline int fs_in_ball(const as_surface *s, const double p[3]) {

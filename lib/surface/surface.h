@@ -274,6 +274,11 @@ anistar_status as_surface_frame_at(anistar_context *ctx, const as_surface *s, co
 anistar_status as_surface_sample(anistar_context *ctx, const as_surface *s, size_t max_points,
                                  as_point_sample *out);
 void as_surface_sample_free(anistar_context *ctx, as_point_sample *smp);
+/* The area weight of each point of smp (w[i] = area of its component / the component's
+ * point count: sum_i w[i] g(p_i) ~ the integral of g over S, as_point_sample); w holds
+ * smp->n values. OK or ENOMEM. */
+anistar_status as_surface_sample_weights(anistar_context *ctx, const as_point_sample *smp,
+                                         double *w);
 
 /* A sampler of s: as_sampler_sample(ctx, sp, n, out) gives exactly as_surface_sample(ctx,
  * s, n, out). With a pool (pool.h; NULL: none) the grid values of the analysis and the

@@ -922,6 +922,11 @@ ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const do
     return as_field_eval(m->ctx, m, p, t);
 }
 
+ANISTAR_API anistar_status anistar_metric_set_gradation(anistar_metric *m, double grad) {
+    if (!m) return ANISTAR_EINVAL;
+    return as_field_set_gradation(m->ctx, m, grad);
+}
+
 ANISTAR_API void anistar_metric_free(anistar_metric *m) { as_field_free(m); }
 
 /* ==== END SURFACES AND METRIC FIELDS ==== */

@@ -943,6 +943,222 @@ static void test_gradation_analytic(void **state) {
     anistar_context_free(ctx);
 }
 
+/* A field from a solver that jumps: on the unit sphere, isotropic with unit length 1/2 in
+ * the upper half (z > 0) and 2 in the lower one (a size ratio of 4 across the equator).
+ * With fail set it fails where x > 0.9. Counts its calls. */
+typedef struct jump_user {
+    int fail;
+    long calls;
+} jump_user;
+static int jump_fn(const double p[3], const double n[3], double m[6], void *user) {
+    (void)n;
+    jump_user *u = user;
+    u->calls++;
+    if (u->fail && p[0] > 0.9) return 1;
+    double e = p[2] > 0 ? 4 : 0.25;
+    m[0] = m[3] = m[5] = e;
+    m[1] = m[2] = m[4] = 0;
+    return 0;
+}
+
+/* The tensors of m at the n points pts (3 n) into t (6 n). */
+static void eval_all(const anistar_metric *m, const double *pts, size_t n, double *t) {
+    for (size_t i = 0; i < n; i++)
+        if (anistar_metric_eval(m, pts + 3 * i, t + 6 * i))
+            fail_msg("eval at point %zu: %s", i, anistar_last_error(m->ctx));
+}
+
+/* anistar_metric_set_gradation on a metric from a callback (the public API end to end):
+ * (1) bad G is EINVAL and leaves the field as it was; (2) graded with G = 1.3 the jump at
+ * the equator is gone (distortion across it below 1.1; ungraded 4), the field is nowhere
+ * below the callback's, and along a meridian of the coarse half the unit length grows
+ * from the fine half's 1/2 within the gradation's bound 1/2 + s ln G (arc length s, the
+ * sample's spacing as slack) yet above 1/2 at the pole (graded, not flattened); (3) a
+ * second call replaces the first (G = 2 after 1.3 gives, bit for bit, what G = 2 gives on
+ * a new metric); G = 0 gives back the callback's tensors bit for bit; (4) a callback that
+ * fails at sample points makes the call fail naming the point, and the field is unchanged;
+ * (5) a uniform metric accepts it unchanged; (6) ungraded, the run is refused by its
+ * estimate with a message naming the setter; graded, the field meshes: certified, closed,
+ * Euler characteristic 2, no distortion insertion. */
+static void test_set_gradation(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    assert_int_equal(anistar_surface_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    jump_user ju = {0, 0};
+    anistar_metric *m = NULL;
+    assert_int_equal(anistar_metric_from_callback(ctx, s, jump_fn, &ju, &m), ANISTAR_OK);
+    as_point_sample smp;
+    assert_int_equal(as_surface_sample(ctx, s, 300, &smp), ANISTAR_OK);
+    const size_t n = smp.n;
+    double *raw = malloc(n * 6 * sizeof *raw), *t = malloc(n * 6 * sizeof *t),
+           *g13 = malloc(n * 6 * sizeof *g13);
+    assert_true(raw && t && g13);
+    eval_all(m, smp.points, n, raw);
+    /* (1) */
+    const double bad[] = {1, 0.5, -2, NAN, INFINITY};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        assert_int_equal(anistar_metric_set_gradation(m, bad[i]), ANISTAR_EINVAL);
+        assert_non_null(strstr(anistar_last_error(ctx), "gradation G must be > 1"));
+    }
+    assert_int_equal(anistar_metric_set_gradation(NULL, 1.3), ANISTAR_EINVAL);
+    eval_all(m, smp.points, n, t);
+    assert_memory_equal(t, raw, n * 6 * sizeof *t);
+    /* (2) */
+    long before = ju.calls;
+    assert_int_equal(anistar_metric_set_gradation(m, 1.3), ANISTAR_OK);
+    print_message("set_gradation(1.3): %ld callback calls\n", ju.calls - before);
+    assert_true(ju.calls - before >= AS_FIELD_GRAD_MIN_POINTS / 2); /* the sample and the pre-sample */
+    const double pa[3] = {1, 0, 1e-7}, pb[3] = {1, 0, -1e-7};
+    double a[6], b[6];
+    assert_int_equal(anistar_metric_eval(m, pa, a), ANISTAR_OK);
+    assert_int_equal(anistar_metric_eval(m, pb, b), ANISTAR_OK);
+    double gg = gamma_of(a, b);
+    print_message("equator: gamma %.4f graded (ungraded 4)\n", gg);
+    assert_true(gg < 1.1);
+    eval_all(m, smp.points, n, g13);
+    double least = INFINITY;
+    for (size_t i = 0; i < n; i++) least = fmin(least, min_rel_eig(raw + 6 * i, g13 + 6 * i));
+    assert_true(least >= 1 - 1e-9);
+    const double lg = log(1.3), ds = 1e-3;
+    double worst = 0, L = 0;
+    for (double th = 0; th < PI / 2; th += ds) { /* from the equator down to the pole */
+        double q[3] = {cos(th + ds), 0, -sin(th + ds)}, mq[6];
+        assert_int_equal(anistar_metric_eval(m, q, mq), ANISTAR_OK);
+        double u[3] = {-sin(th + ds), 0, -cos(th + ds)}; /* along the meridian */
+        double uMu = u[0] * (mq[0] * u[0] + mq[1] * u[1] + mq[2] * u[2]) +
+                     u[1] * (mq[1] * u[0] + mq[3] * u[1] + mq[4] * u[2]) +
+                     u[2] * (mq[2] * u[0] + mq[4] * u[1] + mq[5] * u[2]);
+        L = 1 / sqrt(uMu);
+        worst = fmax(worst, L / (0.5 + (th + ds) * lg));
+    }
+    print_message("meridian: unit length / graded bound at most %.3f; at the pole %.3f "
+                  "(callback 2, equator 0.5)\n", worst, L);
+    assert_true(worst < 1.15);
+    assert_true(L > 0.6 && L < 1.0);
+    /* (3) */
+    assert_int_equal(anistar_metric_set_gradation(m, 2), ANISTAR_OK);
+    eval_all(m, smp.points, n, t);
+    anistar_metric *m2 = NULL;
+    assert_int_equal(anistar_metric_from_callback(ctx, s, jump_fn, &ju, &m2), ANISTAR_OK);
+    assert_int_equal(anistar_metric_set_gradation(m2, 2), ANISTAR_OK);
+    double *t2 = malloc(n * 6 * sizeof *t2);
+    assert_non_null(t2);
+    eval_all(m2, smp.points, n, t2);
+    assert_memory_equal(t, t2, n * 6 * sizeof *t);
+    assert_memory_not_equal(t, g13, n * 6 * sizeof *t);
+    anistar_metric_free(m2);
+    assert_int_equal(anistar_metric_set_gradation(m, 0), ANISTAR_OK);
+    eval_all(m, smp.points, n, t);
+    assert_memory_equal(t, raw, n * 6 * sizeof *t);
+    /* (4) */
+    assert_int_equal(anistar_metric_set_gradation(m, 1.3), ANISTAR_OK);
+    ju.fail = 1;
+    assert_int_equal(anistar_metric_set_gradation(m, 2), ANISTAR_EINVAL);
+    const char *e = anistar_last_error(ctx);
+    assert_non_null(strstr(e, "the metric callback failed"));
+    double q[3];
+    msg_point(e, q);
+    assert_true(q[0] > 0.9);
+    ju.fail = 0;
+    eval_all(m, smp.points, n, t);
+    assert_memory_equal(t, g13, n * 6 * sizeof *t);
+    /* (5) */
+    anistar_metric *mu = NULL;
+    const double uni[6] = {4, 0, 0, 1, 0, 0.25};
+    assert_int_equal(anistar_metric_uniform(ctx, s, uni, &mu), ANISTAR_OK);
+    assert_int_equal(anistar_metric_set_gradation(mu, 1.3), ANISTAR_OK);
+    assert_int_equal(anistar_metric_eval(mu, pa, a), ANISTAR_OK);
+    assert_memory_equal(a, uni, sizeof a);
+    anistar_metric_free(mu);
+    /* (6) ungraded, the run is refused up front, the message naming this call (and the
+     * estimate ends: its bisection met gamma >= gamma0 at every distance > 0 from the
+     * sample points with z = 0 exactly, down to the least subnormal, and looped there) */
+    anistar_mesher *me = NULL;
+    assert_int_equal(anistar_metric_from_callback(ctx, s, jump_fn, &ju, &m2), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m2, &me), ANISTAR_OK);
+    anistar_mesh *none = (anistar_mesh *)1;
+    assert_int_equal(anistar_mesher_run(me, &none), ANISTAR_EINVAL);
+    assert_null(none);
+    print_message("ungraded: %s\n", anistar_last_error(ctx));
+    assert_non_null(strstr(anistar_last_error(ctx), "grade it: anistar_metric_set_gradation"));
+    anistar_mesher_free(me);
+    anistar_metric_free(m2);
+    /* graded */
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_THREADS, 2), ANISTAR_OK);
+    anistar_mesh *mesh = NULL;
+    if (anistar_mesher_run(me, &mesh)) fail_msg("graded callback: %s", anistar_last_error(ctx));
+    anistar_mesh_stats st;
+    anistar_mesh_get_stats(mesh, &st);
+    const anistar_mesh_stats *S = &st;
+    print_message("sphere, jumping callback graded 1.3: %zu V, %llu distortion insertions\n",
+                  S->vertices, (unsigned long long)S->insertions_distortion);
+    assert_true(S->complete && S->closed_manifold);
+    assert_int_equal(S->inconsistent_facets, 0);
+    assert_int_equal(S->facets_below_hmin, 0);
+    assert_int_equal(S->euler_characteristic, 2);
+    assert_true(S->insertions_distortion == 0);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    free(raw);
+    free(t);
+    free(t2);
+    free(g13);
+    as_surface_sample_free(ctx, &smp);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+/* The setter gives the field the SPEC gives: "curvature,grad=1.3" and "curvature" graded
+ * with 1.3 afterwards agree bit for bit on a triangle mesh (per-vertex tensors graded
+ * along the edges), an image (lattice tensors along their nearest neighbours) and an
+ * implicit surface (a graded sample); and 0 gives back the ungraded field on each. */
+static void test_set_gradation_spec(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *surf[3] = {NULL, NULL, NULL};
+    assert_int_equal(as_mesh_surface_read(ctx, AS_TEST_DATA_DIR "/fandisk.off", &surf[0]),
+                     ANISTAR_OK);
+    assert_int_equal(as_image_surface_read(ctx, AS_TEST_DATA_DIR "/skull_2.9.inr", 2.9, 1,
+                                           &surf[1]),
+                     ANISTAR_OK);
+    surf[2] = expression(ctx, "max(abs(x)-1,0)^2+y^2+z^2-0.25", 2);
+    for (int k = 0; k < 3; k++) {
+        as_point_sample smp;
+        assert_int_equal(as_surface_sample(ctx, surf[k], 200, &smp), ANISTAR_OK);
+        as_field *a = field(ctx, surf[k], "curvature,grad=1.3"),
+                 *b = field(ctx, surf[k], "curvature"), *c = field(ctx, surf[k], "curvature");
+        assert_int_equal(as_field_set_gradation(ctx, b, 1.3), ANISTAR_OK);
+        assert_int_equal(as_field_set_gradation(ctx, c, 1.6), ANISTAR_OK);
+        assert_int_equal(as_field_set_gradation(ctx, c, 0), ANISTAR_OK);
+        as_field *u = field(ctx, surf[k], "curvature");
+        size_t differ = 0;
+        for (size_t i = 0; i < smp.n; i++) {
+            double ta[6], tb[6], tc[6], tu[6];
+            const double *p = smp.points + 3 * i;
+            assert_int_equal(as_field_eval(ctx, a, p, ta), ANISTAR_OK);
+            assert_int_equal(as_field_eval(ctx, b, p, tb), ANISTAR_OK);
+            assert_int_equal(as_field_eval(ctx, c, p, tc), ANISTAR_OK);
+            assert_int_equal(as_field_eval(ctx, u, p, tu), ANISTAR_OK);
+            assert_memory_equal(ta, tb, sizeof ta);
+            assert_memory_equal(tc, tu, sizeof tc);
+            differ += memcmp(ta, tu, sizeof ta) != 0;
+        }
+        print_message("surface %d: graded differs from ungraded at %zu of %zu points\n", k,
+                      differ, smp.n);
+        assert_true(differ > 0); /* the gradation did something on each */
+        as_field_free(a);
+        as_field_free(b);
+        as_field_free(c);
+        as_field_free(u);
+        as_surface_sample_free(ctx, &smp);
+        as_surface_free(surf[k]);
+    }
+    anistar_context_free(ctx);
+}
+
 static void test_spec_errors(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
@@ -1175,6 +1391,71 @@ static void test_alloc_failures_graded(void **state) {
                   total - base, tested);
 }
 
+/* The setter under allocation failures, on a metric from a callback (a graded sample)
+ * and on a triangle mesh's curvature (graded vertex tensors): every allocation the call
+ * makes fails in turn (every one of the last 24 and every 6th before them): ENOMEM, the
+ * field as it was (the callback's tensors, no graded blend; the mesh's blend unchanged),
+ * nothing left allocated when all is freed. */
+static void test_alloc_failures_setter(void **state) {
+    (void)state;
+    const double p[3] = {0.6, 0, -0.8};
+    for (int kind = 0; kind < 2; kind++) {
+        long before = -1, after = -1;
+        double want[6] = {0};
+        for (long k = -1; k < 0 || k < after; k = k < 0 ? before : k + 1) { /* -1: count */
+            if (k >= 0 && k < after - 24 && (k - before) % 6 != 0) continue;
+            tu_alloc ta;
+            tu_alloc_init(&ta, -1);
+            anistar_allocator al = tu_allocator(&ta);
+            anistar_context *ctx = anistar_context_new(&al);
+            assert_non_null(ctx);
+            as_surface *s = NULL;
+            as_field *f = NULL;
+            jump_user ju = {0, 0};
+            if (kind == 0) {
+                assert_int_equal(as_implicit_builtin(ctx, "sphere", &s), ANISTAR_OK);
+                assert_int_equal(as_field_custom(ctx, s, jump_fn, &ju, &f), ANISTAR_OK);
+            } else {
+                assert_int_equal(as_mesh_surface_read(ctx, AS_TEST_DATA_DIR "/sphere_r0.5.off", &s),
+                                 ANISTAR_OK);
+                assert_int_equal(as_field_from_spec(ctx, s, "curvature", &f), ANISTAR_OK);
+            }
+            double m0[6], m1[6];
+            const double *q = p;
+            double qm[3] = {0.3, 0, -0.4}; /* on the mesh sphere of radius 1/2 */
+            if (kind == 1) q = qm;
+            assert_int_equal(as_field_eval(ctx, f, q, m0), ANISTAR_OK);
+            if (k < 0) {
+                before = ta.count;
+                assert_int_equal(as_field_set_gradation(ctx, f, 1.3), ANISTAR_OK);
+                after = ta.count;
+                assert_int_equal(as_field_eval(ctx, f, q, want), ANISTAR_OK);
+            } else {
+                ta.fail_after = k;
+                anistar_status st = as_field_set_gradation(ctx, f, 1.3);
+                if (st != ANISTAR_ENOMEM) fail_msg("allocation %ld failing: status %d", k, (int)st);
+                ta.fail_after = -1;
+                assert_null(f->gblend);
+                assert_int_equal(as_field_eval(ctx, f, q, m1), ANISTAR_OK);
+                assert_memory_equal(m0, m1, sizeof m0);
+                if (k % 16 == 0) { /* and it succeeds afterwards (a few: each samples S) */
+                    assert_int_equal(as_field_set_gradation(ctx, f, 1.3), ANISTAR_OK);
+                    assert_int_equal(as_field_eval(ctx, f, q, m1), ANISTAR_OK);
+                    assert_memory_equal(want, m1, sizeof m1);
+                }
+            }
+            as_field_free(f);
+            as_surface_free(s);
+            anistar_context_free(ctx);
+            assert_int_equal(ta.live_blocks, 0);
+            assert_int_equal(ta.live_bytes, 0);
+        }
+        print_message("setter, %s: %ld allocations\n", kind ? "mesh curvature" : "callback",
+                      after - before);
+        assert_true(after > before);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_curvature_torus),  cmocka_unit_test(test_curvature_umbilic),
@@ -1182,6 +1463,8 @@ int main(void) {
         cmocka_unit_test(test_all_kinds_spd),    cmocka_unit_test(test_anisotropy_clamp),
         cmocka_unit_test(test_singular_points),  cmocka_unit_test(test_custom_errors),
         cmocka_unit_test(test_gradation),        cmocka_unit_test(test_gradation_analytic),
+        cmocka_unit_test(test_set_gradation),    cmocka_unit_test(test_set_gradation_spec),
+        cmocka_unit_test(test_alloc_failures_setter),
         cmocka_unit_test(test_spec_errors),      cmocka_unit_test(test_public_api),
         cmocka_unit_test(test_alloc_failures),   cmocka_unit_test(test_alloc_failures_graded),
         cmocka_unit_test(test_hessian_zero),

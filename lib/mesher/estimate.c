@@ -112,6 +112,11 @@ static anistar_status distortion_radius(const as_starset *ss, anistar_context *c
         }
         while (hi - lo > 0.05 * hi) {
             double mid = 0.5 * (lo + hi);
+            /* a field that jumps where p lies (a callback's step at z = 0 seen from a point
+             * with z = 0 exactly) has gamma >= gamma0 at every d > 0 and not at 0: hi
+             * shrinks to the least subnormal, where 0.05 hi is 0 and mid is lo; stop
+             * when no double lies between lo and hi (dr is then 0 to the last bit) */
+            if (!(mid > lo && mid < hi)) break;
             if ((s = gamma_at(ss, ctx, p, mf, u, ulen, mid, &g)) != ANISTAR_OK) return s;
             if (g >= prm->gamma0) hi = mid;
             else lo = mid;

@@ -1762,6 +1762,10 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                     : ss->field->grad > 0
                         ? "; most of them for gamma0: the graded metric still varies faster "
                           "than its own sizes (raise gamma0, or lower grad)"
+                    : ss->field->kind == AS_FIELD_CUSTOM
+                        ? "; most of them for gamma0: the metric varies faster than its own "
+                          "sizes (where it jumps, grade it: anistar_metric_set_gradation, e.g. "
+                          "G = 1.3, or raise gamma0)"
                         : "; most of them for gamma0: the metric varies faster than its own "
                           "sizes (where it jumps, grade it: grad=G in the metric spec, e.g. "
                           "curvature,grad=1.3, or raise gamma0)");

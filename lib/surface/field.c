@@ -531,7 +531,7 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
                                   t, p, " (symmetric positive definite with a condition number "
                                         "<= 1e24 needed)");
         memcpy(m, t, sizeof t);
-        return ANISTAR_OK;
+        return fl->gblend ? fl_graded(ctx, fl, p, m) : ANISTAR_OK;
     }
     case AS_FIELD_CURVATURE:
     case AS_FIELD_GRADIENT:
@@ -580,6 +580,7 @@ void as_field_free(as_field *fl) {
     as_blend_free(ctx, fl->blend);
     as_kdtree_free(ctx, fl->bkd);
     as_free(ctx, fl->bxyz, fl->bn * 3 * sizeof(double));
+    as_free(ctx, fl->braw, fl->nraw * 6 * sizeof(double));
     as_blend_free(ctx, fl->gblend);
     as_kdtree_free(ctx, fl->gkd);
     as_free(ctx, fl->gxyz, fl->gn * 3 * sizeof(double));
@@ -1013,15 +1014,16 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
             if (v >= 0) memcpy(tens + 6 * (size_t)v, t, sizeof t);
         }
     }
-    /* design: grad=G bounds the growth of the vertex metrics along the mesh (gradation)
-     * before they are blended: a field from data (jets across a crease, a .sol) may jump,
-     * and the distortion rule cannot refine a jump away (docs/algorithm.md) */
-    if (sp->has_grad && (st = as_field_gradation(ctx, tens, mi.xyz, mi.nt, mi.tri, sp->grad)))
-        goto done;
-    if (sp->has_grad) fl->grad = sp->grad;
+    /* grad=G is applied afterwards (as_field_set_gradation): the tensors as fitted are
+     * kept so that a gradation can be set or changed later */
     double rb = sp->has_rb ? sp->rb : 0;
     if (!sp->has_rb) st = as_blend_default_radius(ctx, mi.kd, mi.xyz, nv, k, &rb);
     if (!st) st = as_blend_create(ctx, mi.kd, mi.xyz, nv, tens, rb, &fl->blend);
+    if (!st) {
+        fl->braw = tens;
+        fl->nraw = nv;
+        tens = NULL;
+    }
 done:
     as_free(ctx, tens, nv * 6 * sizeof(double));
     as_free(ctx, own, nv * AS_MESH_VJET * sizeof(double));
@@ -1054,19 +1056,16 @@ static anistar_status fl_image_blend(anistar_context *ctx, const as_surface *s,
     for (size_t i = 0; i < fl->bn && !st; i++)
         st = as_field_eval(ctx, fl, fl->bxyz + 3 * i, tens + 6 * i);
     if (!st) st = as_kdtree_build(ctx, fl->bxyz, NULL, fl->bn, &fl->bkd);
-    /* design: grad=G grades the lattice tensors along their nearest-neighbour graph before
-     * they are blended, as a triangle mesh's vertex tensors are along its edges */
-    if (!st && sp->has_grad) {
-        int32_t *edges = NULL;
-        size_t ne = 0, cap = 0;
-        st = knn_edges(ctx, fl->bkd, fl->bxyz, fl->bn, &edges, &ne, &cap);
-        if (!st) st = as_field_gradation_edges(ctx, tens, fl->bxyz, ne, edges, sp->grad, 1, NULL);
-        as_free(ctx, edges, cap * 2 * sizeof *edges);
-    }
+    /* grad=G is applied afterwards (as_field_set_gradation), to a copy of these tensors */
     double rb = sp->has_rb ? sp->rb : 0;
     if (!st && !sp->has_rb) st = as_blend_default_radius(ctx, fl->bkd, fl->bxyz, fl->bn, AS_JET_K2, &rb);
     if (!st) st = as_blend_create(ctx, fl->bkd, fl->bxyz, fl->bn, tens, rb, &fl->blend);
-    if (!st) fl->hdata = 2 * voxel;
+    if (!st) {
+        fl->hdata = 2 * voxel;
+        fl->braw = tens;
+        fl->nraw = fl->bn;
+        return ANISTAR_OK;
+    }
     as_free(ctx, tens, fl->bn * 6 * sizeof(double));
     return st;
 }
@@ -1151,6 +1150,77 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
     return st;
 }
 
+/* The blend's tensors as fitted (braw), graded with G along the mesh's triangles or the
+ * lattice points' nearest-neighbour graph, into the blend (G == 0: as fitted). */
+static anistar_status fl_regrade_blend(anistar_context *ctx, as_field *fl, double grad) {
+    size_t n = fl->nraw;
+    double *t = as_alloc_array(ctx, n, 6 * sizeof(double));
+    if (!t) return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+    memcpy(t, fl->braw, n * 6 * sizeof(double));
+    anistar_status st = ANISTAR_OK;
+    if (grad > 0 && as_surface_is_mesh(fl->surf)) {
+        /* design: a triangle mesh's vertex metrics are graded along its edges (paper
+         * 5.2.3's vertex tensors; docs/algorithm.md, gradation) */
+        as_mesh_info mi;
+        as_mesh_surface_info(fl->surf, &mi);
+        st = as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, grad);
+    } else if (grad > 0) { /* an image's lattice points: along their nearest neighbours */
+        int32_t *edges = NULL;
+        size_t ne = 0, cap = 0;
+        st = knn_edges(ctx, fl->bkd, fl->bxyz, fl->bn, &edges, &ne, &cap);
+        if (!st) st = as_field_gradation_edges(ctx, t, fl->bxyz, ne, edges, grad, 1, NULL);
+        as_free(ctx, edges, cap * 2 * sizeof *edges);
+    }
+    if (!st) as_blend_set_tensors(fl->blend, t);
+    as_free(ctx, t, n * 6 * sizeof(double));
+    return st;
+}
+
+/*
+ * as_field_set_gradation — grad=G, from the SPEC or the API (field.h).
+ * design: one path for both, so that "curvature,grad=1.3" and the setter give the same
+ * field, and a field as fitted is never lost (a gradation can be changed or removed):
+ *   - uniform: nothing varies, G is only recorded;
+ *   - blended (per-vertex tensors on meshes, lattice tensors on images): a copy of the
+ *     tensors as fitted is graded and replaces the blend's (points, radius, grid kept);
+ *   - every other field, callbacks included: the blend of a graded sample of the field
+ *     without any earlier gradation (fl_grade_sample), intersected at evaluation.
+ * The earlier gradation is kept until the new one has succeeded.
+ */
+anistar_status as_field_set_gradation(anistar_context *ctx, as_field *fl, double grad) {
+    if (!(grad == 0 || (isfinite(grad) && grad > 1)))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "metric: gradation G must be > 1 (or 0: none), got %g", grad);
+    anistar_status st = ANISTAR_OK;
+    if (fl->kind == AS_FIELD_UNIFORM) {
+        /* constant: already graded for every G */
+    } else if (fl->blend) {
+        st = fl_regrade_blend(ctx, fl, grad);
+    } else {
+        as_blend *ob = fl->gblend;
+        double *ox = fl->gxyz;
+        size_t on = fl->gn;
+        as_kdtree *okd = fl->gkd;
+        fl->gblend = NULL;
+        fl->gxyz = NULL;
+        fl->gn = 0;
+        fl->gkd = NULL;
+        if (grad > 0) st = fl_grade_sample(ctx, fl->surf, grad, fl);
+        if (st) { /* fl_grade_sample keeps nothing on failure */
+            fl->gblend = ob;
+            fl->gxyz = ox;
+            fl->gn = on;
+            fl->gkd = okd;
+        } else {
+            as_blend_free(ctx, ob);
+            as_kdtree_free(ctx, okd);
+            as_free(ctx, ox, on * 3 * sizeof(double));
+        }
+    }
+    if (!st) fl->grad = grad;
+    return st;
+}
+
 anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, const char *spec,
                                   as_field **out) {
     *out = NULL;
@@ -1179,6 +1249,7 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
         as_field *fl;
         st = fl_new(ctx, s, sp.kind, &fl);
         if (!st) st = fl_mesh_blend(ctx, s, &sp, fl);
+        if (!st && sp.has_grad) st = as_field_set_gradation(ctx, fl, sp.grad);
         as_field_spec_clear(ctx, &sp);
         if (st) {
             as_field_free(fl);
@@ -1223,8 +1294,7 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     fl->en = sp.has_en ? sp.en : 0;
     if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     if (!st && image_curv) st = fl_image_blend(ctx, s, &sp, fl);
-    else if (!st && sp.has_grad) st = fl_grade_sample(ctx, s, sp.grad, fl);
-    if (!st && sp.has_grad) fl->grad = sp.grad;
+    if (!st && sp.has_grad) st = as_field_set_gradation(ctx, fl, sp.grad);
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

@@ -177,6 +177,9 @@ struct anistar_metric {
     double *bxyz;            /* images: the points the blend is over (owned, 3 * bn) */
     size_t bn;
     as_kdtree *bkd;          /* images: their kd-tree (owned) */
+    double *braw;            /* the blend's tensors as fitted, before any gradation
+                                (owned, 6 * nraw): as_field_set_gradation grades a copy */
+    size_t nraw;
     as_blend *gblend;        /* grad=G on a field given at every point: the blend of the
                                 graded sample (fl_grade_sample; NULL: none) (owned) */
     double *gxyz;            /* its points (owned, 3 * gn) */
@@ -207,6 +210,15 @@ anistar_status as_field_uniform(anistar_context *ctx, const as_surface *s, const
 anistar_status as_field_custom(anistar_context *ctx, const as_surface *s, as_field_fn fn,
                                void *user, as_field **out);
 void as_field_free(as_field *f);
+
+/* Grade fl with grad = G > 1 (or, G == 0, remove its gradation): the field becomes the
+ * one the SPEC's grad=G gives (the same path: per-vertex and lattice tensors graded before
+ * they are blended, every other field, callbacks included, graded on a sample of S and
+ * intersected with its blend; a uniform field only records G). Replaces an earlier
+ * gradation (the field as fitted is kept). EINVAL for G not 0 and not finite > 1; the
+ * field's evaluation errors at the sample's points; ENOMEM. On failure fl is unchanged.
+ * Not while fl is in use (a mesher made from it). */
+anistar_status as_field_set_gradation(anistar_context *ctx, as_field *fl, double grad);
 
 /*
  * The tensor at p. EINVAL (naming p, and the six values when a tensor is at fault) when f

@@ -332,6 +332,10 @@ void as_blend_free(anistar_context *ctx, as_blend *b) {
 
 double as_blend_radius(const as_blend *b) { return b->rb; }
 
+void as_blend_set_tensors(as_blend *b, const double *tensors) {
+    memcpy(b->tensor, tensors, b->n * 6 * sizeof(double));
+}
+
 /* The squared distance as the kd-tree computes it (kdtree.h: one formula). */
 static inline double kd_d2(const double a[3], const double q[3]) {
     double dx = a[0] - q[0], dy = a[1] - q[1], dz = a[2] - q[2];

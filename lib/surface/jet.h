@@ -121,6 +121,8 @@ anistar_status as_blend_create(anistar_context *ctx, const as_kdtree *kd, const 
                                size_t n, const double *tensors, double rb, as_blend **out);
 void as_blend_free(anistar_context *ctx, as_blend *b);
 double as_blend_radius(const as_blend *b);
+/* Replace the blend's n tensors (6 n values, copied; the points, radius and grid stay). */
+void as_blend_set_tensors(as_blend *b, const double *tensors);
 
 /*
  * as_blend_eval — the blended tensor at p:

@@ -236,7 +236,7 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     case OPT_DEGREE: dst = &sp->degree; has = &sp->has_degree; break;
     case OPT_K: dst = &sp->k; has = &sp->has_k; break;
     case OPT_RB: dst = &sp->rb; has = &sp->has_rb; break;
-    case OPT_GRAD: dst = &sp->grad; has = &sp->has_grad; break;
+    case OPT_GRAD: dst = &sp->grad; has = &sp->has_grad; positive = 0; break;
     default: dst = &sp->h; has = &sp->has_h; break;
     }
     if (*has)
@@ -245,9 +245,9 @@ static anistar_status parse_option(anistar_context *ctx, const fl_name *nm, cons
     if (positive ? !(v > 0) : !(v >= 0))
         return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option %.*s must be %s, got %g",
                        nm->name, clip_len((size_t)(ke - kb)), kb, positive ? "> 0" : ">= 0", v);
-    if (bit == OPT_GRAD && !(v > 1))
-        return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option grad must be > 1, got %g",
-                       nm->name, v);
+    if (bit == OPT_GRAD && !(v > 1 || v == 0))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "metric '%s': option grad must be > 1 (or 0: none), got %g", nm->name, v);
     if (bit == OPT_DEGREE && !(v == 2 || v == 3 || v == 4))
         return as_fail(ctx, ANISTAR_EINVAL, "metric '%s': option degree must be 2, 3 or 4, got %g",
                        nm->name, v);
@@ -819,27 +819,6 @@ static anistar_status grade_edge(anistar_context *ctx, double *tens, const doubl
     return ANISTAR_OK;
 }
 
-/* as_field_gradation (field.h). design: passes over the triangles' edges in a fixed order,
- * each directed edge i -> j intersecting eta^2 M_i into M_j; a tensor changes only when an
- * eigenvalue of the intersection exceeds its own by a relative 1e-3, so the passes end. */
-anistar_status as_field_gradation(anistar_context *ctx, double *tens, const double *xyz,
-                                  size_t nt, const int32_t *tri, double grad) {
-    const double lb = log(grad);
-    anistar_status st;
-    for (int pass = 0; pass < AS_FIELD_GRAD_PASSES; pass++) {
-        int any = 0;
-        for (size_t t = 0; t < nt; t++)
-            for (int k = 0; k < 3; k++) {
-                int32_t i = tri[3 * t + k], j = tri[3 * t + (k + 1) % 3];
-                if ((st = grade_edge(ctx, tens, xyz, i, j, lb, 0, &any)) ||
-                    (st = grade_edge(ctx, tens, xyz, j, i, lb, 0, &any)))
-                    return st;
-            }
-        if (!any) return ANISTAR_OK;
-    }
-    return ANISTAR_OK;
-}
-
 /* as_field_gradation_edges (field.h): the same passes over the pairs of edges.
  * design: pass k skips an edge neither of whose ends changed in pass k - 1 or k so far:
  * it gave no change in pass k - 1 with the same tensors, so the result is that of full
@@ -1159,11 +1138,24 @@ static anistar_status fl_regrade_blend(anistar_context *ctx, as_field *fl, doubl
     memcpy(t, fl->braw, n * 6 * sizeof(double));
     anistar_status st = ANISTAR_OK;
     if (grad > 0 && as_surface_is_mesh(fl->surf)) {
-        /* design: a triangle mesh's vertex metrics are graded along its edges (paper
-         * 5.2.3's vertex tensors; docs/algorithm.md, gradation) */
+        /* design: a triangle mesh's vertex metrics are graded along its edges (each
+         * once: i < j in one of its triangles), frames kept as everywhere (field.h) */
         as_mesh_info mi;
         as_mesh_surface_info(fl->surf, &mi);
-        st = as_field_gradation(ctx, t, mi.xyz, mi.nt, mi.tri, grad);
+        int32_t *edges = as_alloc_array(ctx, mi.nt, 3 * 2 * sizeof *edges);
+        size_t ne = 0;
+        if (!edges) st = as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+        for (size_t f = 0; f < mi.nt && !st; f++)
+            for (int k = 0; k < 3; k++) {
+                int32_t i = mi.tri[3 * f + k], j = mi.tri[3 * f + (k + 1) % 3];
+                if (i < j) {
+                    edges[2 * ne] = i;
+                    edges[2 * ne + 1] = j;
+                    ne++;
+                }
+            }
+        if (!st) st = as_field_gradation_edges(ctx, t, mi.xyz, ne, edges, grad, 1, NULL);
+        as_free(ctx, edges, mi.nt * 3 * 2 * sizeof *edges);
     } else if (grad > 0) { /* an image's lattice points: along their nearest neighbours */
         int32_t *edges = NULL;
         size_t ne = 0, cap = 0;
@@ -1249,7 +1241,10 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
         as_field *fl;
         st = fl_new(ctx, s, sp.kind, &fl);
         if (!st) st = fl_mesh_blend(ctx, s, &sp, fl);
-        if (!st && sp.has_grad) st = as_field_set_gradation(ctx, fl, sp.grad);
+        /* design: a field from data is graded unless the SPEC says otherwise (issue 13:
+         * jets across creases and noisy scans jump; docs/algorithm.md has the measure) */
+        double g = sp.has_grad ? sp.grad : AS_FIELD_DATA_GRAD;
+        if (!st && g > 0) st = as_field_set_gradation(ctx, fl, g);
         as_field_spec_clear(ctx, &sp);
         if (st) {
             as_field_free(fl);
@@ -1294,7 +1289,8 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     fl->en = sp.has_en ? sp.en : 0;
     if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     if (!st && image_curv) st = fl_image_blend(ctx, s, &sp, fl);
-    if (!st && sp.has_grad) st = as_field_set_gradation(ctx, fl, sp.grad);
+    double g = sp.has_grad ? sp.grad : image_curv && fl->blend ? AS_FIELD_DATA_GRAD : 0;
+    if (!st && g > 0) st = as_field_set_gradation(ctx, fl, g);
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

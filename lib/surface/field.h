@@ -128,32 +128,33 @@ typedef struct as_field_spec {
 anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_field_spec *out);
 
 /*
- * The gradation of per-vertex tensors tens (6 per vertex, points xyz) along the edges of
- * the triangles tri (nt of them), in place: the metric M_i of each vertex, carried to a
- * neighbour j at M_i-length l with its sizes grown by the factor eta^-1 = 1 + l ln(grad)
- * (Alauzet's anisotropic size gradation in metric space, after Borouchaki, Hecht and
- * Frey; MMG's hgrad), is intersected into M_j (the largest metric whose unit ball lies in
- * both), until no tensor changes by more than a relative 1e-3 (at most AS_FIELD_GRAD_PASSES
- * passes). Afterwards M_j >= eta^2 M_i (to that tolerance) across every edge, and every
- * tensor is at least its input. OK, or EINVAL naming a vertex whose tensor stops being a
- * metric (only by overflow).
+ * The gradation of per-point tensors tens (6 per point, points xyz) along ne edges
+ * (edges[2e], edges[2e + 1]), in place, each pass over them in order, both directions:
+ * the metric M_i of each point, carried to a neighbour j at M_i-length l with its sizes
+ * grown by the factor eta^-1 = 1 + l ln(grad) (Alauzet's anisotropic size gradation in
+ * metric space, after Borouchaki, Hecht and Frey; MMG's hgrad), bounds M_j, until no
+ * tensor changes by more than a relative 1e-3 (at most AS_FIELD_GRAD_PASSES passes).
+ * keep_frame = 0: eta^2 M_i is intersected into M_j (the largest metric whose unit ball
+ * lies in both), so afterwards M_j >= eta^2 M_i across every edge. keep_frame = 1 (what
+ * the fields use): each M_j keeps its eigenvectors and only its eigenvalues are raised,
+ * each to at least eta^2 u^T M_i u along its eigenvector u (so afterwards u^T M_j u >=
+ * eta^2 u^T M_i u along M_j's axes): intersections of anisotropic metrics whose frames
+ * turn are not idempotent, and repeated over passes they inflate every eigenvalue (on the
+ * paper's torus, sampled, the normal eigenvalue 1 became 8.7 and the mesh 7 times
+ * larger; knot1's jets graded along its edges, 6,805 vertices against 5,597); raising
+ * eigenvalues in place cannot exceed the largest eta^2 u^T M_i u met, so the field's
+ * largest eigenvalue never grows. Every tensor is at least its input. *changed (if not
+ * NULL): 1 if some tensor changed. OK, ENOMEM, or EINVAL naming a point whose tensor
+ * stops being a metric (only by overflow).
  */
 #define AS_FIELD_GRAD_PASSES 200
-anistar_status as_field_gradation(anistar_context *ctx, double *tens, const double *xyz,
-                                  size_t nt, const int32_t *tri, double grad);
-/* The same along ne edges (edges[2e], edges[2e + 1]), each pass over them in order, both
- * directions. keep_frame = 0: as above. keep_frame = 1: each M_j keeps its eigenvectors
- * and only its eigenvalues are raised, each to at least eta^2 u^T M_i u along its
- * eigenvector u (so afterwards u^T M_j u >= eta^2 u^T M_i u along M_j's axes, to the
- * relative 1e-3, instead of M_j >= eta^2 M_i): intersections of anisotropic metrics
- * whose frames turn are not idempotent, and repeated over passes they inflate every
- * eigenvalue (on the paper's torus, sampled, the normal eigenvalue 1 became 8.7 and the
- * mesh 7 times larger); raising eigenvalues in place cannot exceed the largest eta^2
- * u^T M_i u met, so the field's largest eigenvalue never grows. *changed (if not NULL):
- * 1 if some tensor changed. */
 anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, const double *xyz,
                                         size_t ne, const int32_t *edges, double grad,
                                         int keep_frame, int *changed);
+/* The gradation fields from data get unless their SPEC says grad=G or grad=0 (none):
+ * curvature and sol on triangle meshes, curvature on images (field.c,
+ * as_field_from_spec; chosen by measurement: docs/algorithm.md). */
+#define AS_FIELD_DATA_GRAD 1.5
 /* grad=G on fields given at every point and on images' lattices (field.c,
  * fl_grade_sample): the neighbours of a point in the gradation graph, the sample points
  * per unit of (area x largest eigenvalue of M), and the bounds of the sample's size. */
@@ -185,7 +186,7 @@ struct anistar_metric {
     double *gxyz;            /* its points (owned, 3 * gn) */
     size_t gn;
     as_kdtree *gkd;          /* their kd-tree (owned) */
-    double grad;             /* grad=G as given (0: none) */
+    double grad;             /* the gradation G applied (0: none) */
     double hdata;            /* the resolution of the data the field is fitted to (the
                                 automatic hmin; 0: none, the field is the user's own) */
 };

@@ -1011,7 +1011,8 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
             st->feature_alpha, (unsigned long long)st->feature_halvings);
     fprintf(f, "  \"topology_below_hmin\": %llu,\n  \"sites_unused\": %zu,\n",
             (unsigned long long)st->topology_below_hmin, st->sites_unused);
-    fprintf(f, "  \"stars_delaunay_zone\": %zu,\n", st->stars_delaunay_zone);
+    fprintf(f, "  \"stars_delaunay_zone\": %zu,\n  \"facets_swept\": %llu,\n",
+            st->stars_delaunay_zone, (unsigned long long)st->facets_swept);
     fprintf(f,
             "  \"batches\": {\"count\": %llu, \"jobs\": %llu, \"lost\": %llu, "
             "\"set_aside\": %llu},\n",
@@ -1331,7 +1332,9 @@ static void help(void) {
            "  | hessian:EXPR[,eps=E][,en=N][,power=P] | sol:FILE.sol|.solb[,rb=R] (meshes)\n"
            "  every field but euclidean and uniform also takes grad=G (gradation, G > 1:\n"
            "  sizes grow by at most about 1 + l ln G over metric length l; for fields that\n"
-           "  jump, e.g. the curvature of surfaces joined with continuous tangents only);\n"
+           "  jump, e.g. the curvature of surfaces joined with continuous tangents only;\n"
+           "  default 1.5 for curvature and sol on triangle meshes, else none; grad=0:\n"
+           "  none);\n"
            "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R\n"
            "  (blending); on images rb=R\n\n"
            "built-in surfaces:\n");

@@ -435,15 +435,18 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
  * centers, rb defaulting to the mean distance from such a point to its 16 nearest (about
  * a voxel and a half; rb=R sets it). sol:FILE on a surface that is not a triangle mesh,
  * degree or k there, and rb on an implicit surface are ANISTAR_EINVAL.
- * grad=G (G > 1; off by default) grades the field (Alauzet's anisotropic size gradation,
+ * grad=G (G > 1; grad=0: none) grades the field (Alauzet's anisotropic size gradation,
  * MMG's hgrad): sizes grow by at most about 1 + l ln G over metric length l, so a field
  * that jumps (jets across a CAD crease, a .sol, the curvature of a surface whose pieces
- * meet with continuous tangents only) becomes one the refinement can finish on. Per-vertex
- * and lattice tensors are graded along the mesh's edges or the lattice points' nearest
- * neighbours before they are blended; a field given at every point is graded on a sample
- * of S (16,384 to 262,144 points) and becomes the intersection of itself with the blend
- * of the graded sample (its sizes never exceed the ungraded ones). Creating such a field
- * costs the sample (0.1-0.3 s on the builtins). */
+ * meet with continuous tangents only) becomes one the refinement can finish on. The
+ * fields of triangle meshes (curvature, sol) are graded with G = 1.5 unless the SPEC says
+ * otherwise; the others only when asked. Per-vertex and
+ * lattice tensors are graded along the mesh's edges or the lattice points' nearest
+ * neighbours (each tensor's eigenvalues raised in its own frame) before they are blended;
+ * a field given at every point is graded on a sample of S (about 12,000 to 262,144
+ * points) and becomes the intersection of itself with the blend of the graded sample
+ * (its sizes never exceed the ungraded ones). Creating such a field costs the sample
+ * (0.1-0.3 s on the builtins). anistar_metric_set_gradation below changes it later. */
 ANISTAR_API anistar_status anistar_metric_from_spec(anistar_context *ctx,
                                                     const anistar_surface *s, const char *spec,
                                                     anistar_metric **out);
@@ -791,6 +794,9 @@ typedef struct anistar_mesh_stats {
     uint64_t batch_jobs;
     uint64_t batch_jobs_lost;
     uint64_t batch_jobs_set_aside;
+    uint64_t facets_swept;        /* facets violating rules 1-2 that no queue held when the
+                                     queues ran dry (found by a last pass over every star
+                                     and refined: 0 unless the refinement lost track of one) */
 } anistar_mesh_stats;
 
 ANISTAR_API size_t anistar_mesh_vertex_count(const anistar_mesh *mesh);

@@ -283,7 +283,7 @@ static void test_lattice_and_blend(void **state) {
     for (size_t i = 0; i < (size_t)BN * BN * BN; i++) vox[i] += tu_rng_range(&r, -0.3, 0.3);
     assert_int_equal(as_image_surface_from_array(ctx, vox, dims, b_spacing, b_origin, 0, 1, &s),
                      ANISTAR_OK);
-    /* the blend alone (grad=0: curvature on images is graded by default, below) */
+    /* the blend alone (grad=0: no gradation, whatever the default) */
     assert_int_equal(as_field_from_spec(ctx, s, "curvature,en=0.16666666666666666,grad=0", &f),
                      ANISTAR_OK);
     assert_non_null(f->blend);

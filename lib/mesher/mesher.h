@@ -113,6 +113,8 @@ typedef struct as_mesher_counters {
     uint64_t specks;   /* image components below the resolution, not meshed */
     uint64_t topo_below_hmin; /* topology points refused: nearer than hmin to a site */
     uint64_t zones_opened;    /* stars set to their Delaunay zone (as_starset_verify_zones) */
+    uint64_t swept;           /* facets violating rules 1-2 that no queue held when the
+                                 queues ran dry (sweep_rules: 0 unless a flag was lost) */
     uint64_t batches, batch_jobs, batch_lost, batch_set_aside; /* refine.c, batch_run */
     double t_init, t_refine, t_output, t_total;
     double estimate_vertices, estimate_bytes;

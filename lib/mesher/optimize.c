@@ -327,6 +327,7 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
     T->topology_below_hmin = S->topology_below_hmin;
     T->sites_unused = S->sites_unused;
     T->stars_delaunay_zone = S->stars_delaunay_zone;
+    T->facets_swept = S->facets_swept;
     T->batches = S->batches;
     T->batch_jobs = S->batch_jobs;
     T->batch_jobs_lost = S->batch_jobs_lost;

@@ -266,6 +266,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
     S->insertions_hmax = cnt->cause[AS_CAUSE_HMAX];
     S->topology_below_hmin = cnt->topo_below_hmin;
     S->stars_delaunay_zone = (size_t)cnt->zones_opened;
+    S->facets_swept = cnt->swept;
     S->batches = cnt->batches;
     S->batch_jobs = cnt->batch_jobs;
     S->batch_jobs_lost = cnt->batch_lost;

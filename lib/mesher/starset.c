@@ -1091,12 +1091,19 @@ static anistar_status restar_on(as_starset *ss, as_simws *w, const as_star_env *
     }
     if ((s = grow_star_box(ss, w, env, sc, st, &ss->mf[v], ep, box)) != ANISTAR_OK) return s;
     if (compact) st->nv_base = st->nv;
-    /* the queue flags of facets that survived a compaction stay valid: copy them over; the
-     * others are new since before (events) */
+    /* design: the queue flags of the facets that survived stay theirs (their entries are
+     * still queued: the star update that recomputed a facet whose tets changed cleared
+     * them, and take_entry then dropped the entry: on knot1 with the graded default field
+     * a facet with r 1.2% above r0 was left so, and the run ended "certified" with it);
+     * a survivor whose surface center moved (the grown or rebuilt star gave its dual
+     * segment other ends) is an event like a new facet, as its rules' verdicts may have
+     * changed; the others are new since before (events) */
     for (int32_t k = 0; k < st->nrf; k++) {
-        int32_t o = find_keep(keep, nkeep, st->rf[k].g);
-        if (compact && o >= 0) st->rf[k].queued = keep[o].queued;
-        st->rf[k].fresh = o < 0;
+        as_rfacet *f = &st->rf[k];
+        int32_t o = find_keep(keep, nkeep, f->g);
+        if (o >= 0) f->queued = keep[o].queued;
+        f->fresh = o < 0 || f->r != keep[o].r ||
+                   memcmp(f->c, keep[o].c, sizeof f->c) != 0;
     }
     return ANISTAR_OK;
 }

@@ -61,7 +61,7 @@ fi
 if [ "$part" = all ] || [ "$part" = paper ]; then
 # the paper's parameters (its sections 6.1-6.3): knot1 of Fig. 8, the torus of Table 2,
 # the shock sphere, the chair, the tori of Table 1
-row "knot1 (Fig. 8)" "$data/knot1.off" --metric curvature --r0 1 --gamma0 1.5
+row "knot1 (Fig. 8)" "$data/knot1.off" --metric curvature,grad=0 --r0 1 --gamma0 1.5
 row "torus (Table 2)" --builtin torus,R=10,r=1 --metric curvature,eps=0.1 --r0 0.1 --gamma0 1.5
 row "shock sphere" --builtin sphere --metric shock --r0 0.1 --gamma0 1.4
 row "chair" --builtin chair,a=0.8,b=0.4,k=1 --metric curvature --r0 0.1 --gamma0 1.3

@@ -1289,9 +1289,8 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     fl->en = sp.has_en ? sp.en : 0;
     if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     if (!st && image_curv) st = fl_image_blend(ctx, s, &sp, fl);
-    /* design: images are not graded by default yet (docs/algorithm.md: the graded brain
-     * met a facet whose dual segment crosses S twice, sized by one crossing here and by
-     * the other in the independent check) */
+    /* design: images are not graded by default (docs/algorithm.md: on the brain the
+     * gradation made the feature-size rule insert 4.5 times as many points) */
     if (!st && sp.has_grad && sp.grad > 0) st = as_field_set_gradation(ctx, fl, sp.grad);
     as_field_spec_clear(ctx, &sp);
     if (st) {

@@ -480,8 +480,9 @@ ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const do
  * callback is graded as a field given at every point is: the callback is called at a
  * sample of S (16,384 to 262,144 points asked of the sampler: 12,622 calls in all on the
  * unit sphere; their cost plus ~0.2 s) and the field becomes its own tensor intersected
- * with the blend of the graded sample (sizes never grow). An earlier gradation (from the SPEC or this call) is replaced: the field as
- * made is kept. A uniform field is left as it is. ANISTAR_EINVAL for G neither 0 nor
+ * with the blend of the graded sample (sizes never grow). An earlier gradation (from the
+ * SPEC or this call) is replaced: the field as made is kept. A uniform field is left as
+ * it is. ANISTAR_EINVAL for G neither 0 nor
  * finite and > 1, and for the field's evaluation errors at a sample point (a callback that
  * fails, a tensor not positive definite: the message names the point); ANISTAR_ENOMEM. On
  * failure m is unchanged. Not thread-safe with other uses of m: call it before making a

@@ -482,11 +482,11 @@ ANISTAR_API anistar_status anistar_metric_eval(const anistar_metric *m, const do
  * unit sphere; their cost plus ~0.2 s) and the field becomes its own tensor intersected
  * with the blend of the graded sample (sizes never grow). An earlier gradation (from the
  * SPEC or this call) is replaced: the field as made is kept. A uniform field is left as
- * it is. ANISTAR_EINVAL for G neither 0 nor
- * finite and > 1, and for the field's evaluation errors at a sample point (a callback that
- * fails, a tensor not positive definite: the message names the point); ANISTAR_ENOMEM. On
- * failure m is unchanged. Not thread-safe with other uses of m: call it before making a
- * mesher from m (a mesher reads m while it exists). The message goes to m's context. */
+ * it is. ANISTAR_EINVAL for G neither 0 nor finite and > 1, and for the field's evaluation
+ * errors at a sample point (a callback that fails, a tensor not positive definite: the
+ * message names the point); ANISTAR_ENOMEM. On failure m is unchanged. Not thread-safe
+ * with other uses of m: call it before making a mesher from m (a mesher reads m while
+ * it exists). The message goes to m's context. */
 ANISTAR_API anistar_status anistar_metric_set_gradation(anistar_metric *m, double grad);
 
 /* Free a metric (NULL is ok). */

@@ -470,49 +470,6 @@ static anistar_status ev_task(void *arg, int32_t k, int t, anistar_context *tctx
     return ANISTAR_OK;
 }
 
-/*
- * Before the final checks: every restricted facet of every star is judged by rules 1 and
- * 2 once more, and a violation that no queue holds is queued (*pushed counts them).
- * design: the queues are fed by the star set's events, and a facet that changes without
- * an event, or loses its queue flag, would otherwise reach the output unrefined while the
- * run reports it certified (a facet 1.2% above r0 on knot1, before the flags of restar's
- * survivors were kept); the final checks do not re-judge the rules, so this pass is what
- * makes "no rule applies" true of the stars themselves. Serial, in site order: one pass
- * over the facets per time the queues run dry (rule 1's pairs are in the cache).
- */
-static anistar_status sweep_rules(refiner *R, size_t *pushed) {
-    as_starset *ss = R->ss;
-    anistar_status s = ANISTAR_OK;
-    *pushed = 0;
-    for (int32_t v = ss->first_site; v < ss->n && s == ANISTAR_OK; v++) {
-        as_star *st = ss->stars[v];
-        if (!st) continue;
-        for (int32_t i = 0; i < st->nrf && s == ANISTAR_OK; i++) {
-            as_rfacet *f = &st->rf[i];
-            as_fkey key = as_facet_key(f->g);
-            if (!(f->queued & 1)) {
-                double v1 = rule1_cached(R, v, f, NULL, &s);
-                if (s == ANISTAR_OK && v1 > 0) {
-                    as_qentry q = {v1, key, v};
-                    if ((s = as_queue_push(R->ctx, &R->q[0], q)) != ANISTAR_OK) break;
-                    f->queued |= 1;
-                    (*pushed)++;
-                }
-            }
-            if (s == ANISTAR_OK && !(f->queued & 2)) {
-                double v2 = as_rule2_violation(ss, R->prm, v, f);
-                if (v2 > 0) {
-                    as_qentry q = {v2, key, v};
-                    if ((s = as_queue_push(R->ctx, &R->q[1], q)) != ANISTAR_OK) break;
-                    f->queued |= 2;
-                    (*pushed)++;
-                }
-            }
-        }
-    }
-    return s;
-}
-
 static anistar_status drain(refiner *R) {
     as_starset *ss = R->ss;
     anistar_status s;
@@ -1511,32 +1468,31 @@ static anistar_status batch_run(refiner *R, int k, int64_t maxv) {
     return drain(R);
 }
 
-/* Queue for rule 1 every restricted facet of star v that violates it now (after its
- * alpha changed). */
-static anistar_status requeue_rule1(refiner *R, int32_t v) {
-    as_starset *ss = R->ss;
-    anistar_status s;
-    {
-        as_star *st = ss->stars[v];
-        for (int32_t i = 0; i < st->nrf; i++) {
-            as_rfacet *f = &st->rf[i];
-            if (f->queued & 1) continue;
-            double v1 = rule1_cached(R, v, f, NULL, &s);
-            if (s != ANISTAR_OK) return s;
-            if (v1 <= 0) continue;
-            as_qentry q = {v1, as_facet_key(f->g), v};
-            if ((s = as_queue_push(R->ctx, &R->q[0], q)) != ANISTAR_OK) return s;
-            f->queued |= 1;
-        }
+/* Queue for rule 1 every restricted facet of star v that violates it now and is not
+ * queued (after its alpha changed); *pushed (if not NULL) counts them. */
+static anistar_status requeue_rule1(refiner *R, int32_t v, size_t *pushed) {
+    as_star *st = R->ss->stars[v];
+    anistar_status s = ANISTAR_OK;
+    for (int32_t i = 0; st && i < st->nrf; i++) {
+        as_rfacet *f = &st->rf[i];
+        if (f->queued & 1) continue;
+        double v1 = rule1_cached(R, v, f, NULL, &s);
+        if (s != ANISTAR_OK) return s;
+        if (v1 <= 0) continue;
+        as_qentry q = {v1, as_facet_key(f->g), v};
+        if ((s = as_queue_push(R->ctx, &R->q[0], q)) != ANISTAR_OK) return s;
+        f->queued |= 1;
+        if (pushed) (*pushed)++;
     }
     return ANISTAR_OK;
 }
 
-/* Queue for rules 1 and 2 every restricted facet of star v that violates them now (a
- * part of the partition simulation: jobs it set aside before its halo came). */
-static anistar_status requeue_star(refiner *R, int32_t v) {
+/* Queue for rules 1 and 2 every restricted facet of star v that violates them now and is
+ * not queued (the partition simulation: jobs it set aside before its halo came; the sweep
+ * below); *pushed (if not NULL) counts them. */
+static anistar_status requeue_star(refiner *R, int32_t v, size_t *pushed) {
     as_starset *ss = R->ss;
-    anistar_status s = requeue_rule1(R, v);
+    anistar_status s = requeue_rule1(R, v, pushed);
     as_star *st = ss->stars[v];
     for (int32_t i = 0; s == ANISTAR_OK && st && i < st->nrf; i++) {
         as_rfacet *f = &st->rf[i];
@@ -1546,9 +1502,29 @@ static anistar_status requeue_star(refiner *R, int32_t v) {
         as_qentry q = {v2, as_facet_key(f->g), v};
         if ((s = as_queue_push(R->ctx, &R->q[1], q)) != ANISTAR_OK) return s;
         f->queued |= 2;
+        if (pushed) (*pushed)++;
     }
     return s;
 }
+
+/*
+ * Before the final checks: every restricted facet of every star is judged by rules 1 and
+ * 2 once more, and a violation that no queue holds is queued (*pushed counts them).
+ * design: the queues are fed by the star set's events, and a facet that changes without
+ * an event, or loses its queue flag, would otherwise reach the output unrefined while the
+ * run reports it certified (a facet 1.2% above r0 on knot1, before the flags of restar's
+ * survivors were kept); the final checks do not re-judge the rules, so this pass is what
+ * makes "no rule applies" true of the stars themselves. Serial, in site order: one pass
+ * over the facets per time the queues run dry (rule 1's pairs are in the cache).
+ */
+static anistar_status sweep_rules(refiner *R, size_t *pushed) {
+    anistar_status s = ANISTAR_OK;
+    *pushed = 0;
+    for (int32_t v = R->ss->first_site; v < R->ss->n && s == ANISTAR_OK; v++)
+        s = requeue_star(R, v, pushed);
+    return s;
+}
+
 
 /*
  * Halve the alpha of the sites inside the balls where the final checks failed
@@ -1583,7 +1559,7 @@ static anistar_status halve_alpha(refiner *R, size_t *halved) {
     }
     /* the stars whose alpha changed, in id order (deterministic) */
     for (int32_t v = ss->first_site; v < ss->n && *halved; v++)
-        if (ss->ws.stamp[v] == ep && (s = requeue_rule1(R, v)) != ANISTAR_OK) return s;
+        if (ss->ws.stamp[v] == ep && (s = requeue_rule1(R, v, NULL)) != ANISTAR_OK) return s;
     return ANISTAR_OK;
 }
 
@@ -1712,6 +1688,25 @@ static int run_limits(refiner *R, int64_t maxv, double t1, uint64_t *steps, doub
     return 0;
 }
 
+/* The refusal's advice when the distortion radius asks for a share bygamma of the
+ * estimated vertices: above half, the metric varies faster than its own sizes, and where
+ * it jumps (surfaces joined with continuous tangents only, a solver's field) no r0 helps,
+ * a gradation does: named as the user sets it (a SPEC option, the API call for a
+ * callback), or gamma0 and a smaller G when the field is graded already. */
+static const char *refusal_hint(const as_field *fl, double bygamma) {
+    if (bygamma <= 0.5) return "";
+    if (fl->grad > 0)
+        return "; most of them for gamma0: the graded metric still varies faster than its own "
+               "sizes (raise gamma0, or lower grad)";
+    if (fl->kind == AS_FIELD_CUSTOM)
+        return "; most of them for gamma0: the metric varies faster than its own sizes (where "
+               "it jumps, grade it: anistar_metric_set_gradation, e.g. G = 1.3, or raise "
+               "gamma0)";
+    return "; most of them for gamma0: the metric varies faster than its own sizes (where it "
+           "jumps, grade it: grad=G in the metric spec, e.g. curvature,grad=1.3, or raise "
+           "gamma0)";
+}
+
 anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                                   const as_field *field, const as_mesher_params *prm,
                                   as_run_ctl *ctl, anistar_mesh **out, as_starset **ss_out) {
@@ -1793,25 +1788,12 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     if (s == ANISTAR_OK)
         s = as_mesher_estimate(ss, prm, &R.cnt.estimate_vertices, &R.cnt.estimate_bytes,
                                &bygamma);
-    /* design: when gamma0 asks for most of them, the metric varies faster than its own
-     * size; where it jumps (surfaces joined with continuous tangents only: max/min of
-     * smooth functions) no r0 helps, the gradation does: the message says so */
     if (s == ANISTAR_OK && R.cnt.estimate_vertices > (double)maxv)
         s = as_fail(ctx, ANISTAR_EINVAL,
                     "mesher: refused: the metric and r0 ask for about %.3g vertices (%.3g GB), "
                     "more than max_vertices %lld; raise r0 or max_vertices%s",
                     R.cnt.estimate_vertices, R.cnt.estimate_bytes * 1e-9, (long long)maxv,
-                    bygamma <= 0.5 ? ""
-                    : ss->field->grad > 0
-                        ? "; most of them for gamma0: the graded metric still varies faster "
-                          "than its own sizes (raise gamma0, or lower grad)"
-                    : ss->field->kind == AS_FIELD_CUSTOM
-                        ? "; most of them for gamma0: the metric varies faster than its own "
-                          "sizes (where it jumps, grade it: anistar_metric_set_gradation, e.g. "
-                          "G = 1.3, or raise gamma0)"
-                        : "; most of them for gamma0: the metric varies faster than its own "
-                          "sizes (where it jumps, grade it: grad=G in the metric spec, e.g. "
-                          "curvature,grad=1.3, or raise gamma0)");
+                    refusal_hint(ss->field, bygamma));
     if (s == ANISTAR_OK) s = initial_points(&R);
     for (size_t k = 0; s == ANISTAR_OK && k < prm->nseeds; k++) {
         const double *p = prm->seeds + 3 * k;
@@ -1862,7 +1844,8 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                 break;
             for (size_t k = 0; k < npts && s == ANISTAR_OK; k++)
                 if (!is_duplicate(ss, pts + 3 * k)) s = insert_point(&R, pts + 3 * k);
-            for (size_t k = 0; k < nagain && s == ANISTAR_OK; k++) s = requeue_star(&R, again[k]);
+            for (size_t k = 0; k < nagain && s == ANISTAR_OK; k++)
+                s = requeue_star(&R, again[k], NULL);
             int pushed;
             if (s == ANISTAR_OK && nagain) s = requeue_inconsistent(&R, &pushed);
             if (s != ANISTAR_OK || !more) break;

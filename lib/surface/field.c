@@ -475,7 +475,7 @@ static int fl_intersect_tol(const double a[6], const double b[6], double out[6],
 static anistar_status fl_graded(anistar_context *ctx, const as_field *fl, const double p[3],
                                 double m[6]) {
     double b[6], o[6];
-    anistar_status st = as_blend_eval(ctx, fl->gblend, p, b);
+    anistar_status st = as_blend_eval(ctx, fl->g.blend, p, b);
     if (st) return st;
     if (fl_intersect_tol(m, b, o, 0) < 0) /* m itself is not a metric: as_field_eval's error */
         return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p,
@@ -531,7 +531,7 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
                                   t, p, " (symmetric positive definite with a condition number "
                                         "<= 1e24 needed)");
         memcpy(m, t, sizeof t);
-        return fl->gblend ? fl_graded(ctx, fl, p, m) : ANISTAR_OK;
+        return fl->g.blend ? fl_graded(ctx, fl, p, m) : ANISTAR_OK;
     }
     case AS_FIELD_CURVATURE:
     case AS_FIELD_GRADIENT:
@@ -547,7 +547,7 @@ anistar_status as_field_eval(anistar_context *ctx, const as_field *fl, const dou
             double e[3] = {L.e1, L.e2, fl->en};
             as_field_tensor(L.u, e, m);
         }
-        if (fl->gblend && (st = fl_graded(ctx, fl, p, m))) return st;
+        if (fl->g.blend && (st = fl_graded(ctx, fl, p, m))) return st;
         if (!fl_frame_ok(m))
             return fail_tensor_at(ctx, "the tensor is not finite and positive definite", m, p,
                                   " (eps or e_n too small or too large)");
@@ -573,6 +573,13 @@ static anistar_status fl_new(anistar_context *ctx, const as_surface *s, as_field
     return ANISTAR_OK;
 }
 
+static void gsample_free(anistar_context *ctx, as_field_gsample *g) {
+    as_blend_free(ctx, g->blend);
+    as_kdtree_free(ctx, g->kd);
+    as_free(ctx, g->xyz, g->n * 3 * sizeof(double));
+    memset(g, 0, sizeof *g);
+}
+
 void as_field_free(as_field *fl) {
     if (!fl) return;
     anistar_context *ctx = fl->ctx;
@@ -581,9 +588,7 @@ void as_field_free(as_field *fl) {
     as_kdtree_free(ctx, fl->bkd);
     as_free(ctx, fl->bxyz, fl->bn * 3 * sizeof(double));
     as_free(ctx, fl->braw, fl->nraw * 6 * sizeof(double));
-    as_blend_free(ctx, fl->gblend);
-    as_kdtree_free(ctx, fl->gkd);
-    as_free(ctx, fl->gxyz, fl->gn * 3 * sizeof(double));
+    gsample_free(ctx, &fl->g);
     as_free(ctx, fl, sizeof *fl);
 }
 
@@ -993,16 +998,10 @@ static anistar_status fl_mesh_blend(anistar_context *ctx, const as_surface *s,
             if (v >= 0) memcpy(tens + 6 * (size_t)v, t, sizeof t);
         }
     }
-    /* grad=G is applied afterwards (as_field_set_gradation): the tensors as fitted are
-     * kept so that a gradation can be set or changed later */
+    /* grad=G is applied afterwards (as_field_set_gradation) */
     double rb = sp->has_rb ? sp->rb : 0;
     if (!sp->has_rb) st = as_blend_default_radius(ctx, mi.kd, mi.xyz, nv, k, &rb);
     if (!st) st = as_blend_create(ctx, mi.kd, mi.xyz, nv, tens, rb, &fl->blend);
-    if (!st) {
-        fl->braw = tens;
-        fl->nraw = nv;
-        tens = NULL;
-    }
 done:
     as_free(ctx, tens, nv * 6 * sizeof(double));
     as_free(ctx, own, nv * AS_MESH_VJET * sizeof(double));
@@ -1035,16 +1034,11 @@ static anistar_status fl_image_blend(anistar_context *ctx, const as_surface *s,
     for (size_t i = 0; i < fl->bn && !st; i++)
         st = as_field_eval(ctx, fl, fl->bxyz + 3 * i, tens + 6 * i);
     if (!st) st = as_kdtree_build(ctx, fl->bxyz, NULL, fl->bn, &fl->bkd);
-    /* grad=G is applied afterwards (as_field_set_gradation), to a copy of these tensors */
+    /* grad=G is applied afterwards (as_field_set_gradation) */
     double rb = sp->has_rb ? sp->rb : 0;
     if (!st && !sp->has_rb) st = as_blend_default_radius(ctx, fl->bkd, fl->bxyz, fl->bn, AS_JET_K2, &rb);
     if (!st) st = as_blend_create(ctx, fl->bkd, fl->bxyz, fl->bn, tens, rb, &fl->blend);
-    if (!st) {
-        fl->hdata = 2 * voxel;
-        fl->braw = tens;
-        fl->nraw = fl->bn;
-        return ANISTAR_OK;
-    }
+    if (!st) fl->hdata = 2 * voxel;
     as_free(ctx, tens, fl->bn * 6 * sizeof(double));
     return st;
 }
@@ -1113,12 +1107,12 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
     if (!st) st = as_field_gradation_edges(ctx, tens, smp.points, ne, edges, grad, 1, &raised);
     double rb = 0;
     if (!st && raised) st = as_blend_default_radius(ctx, kd, smp.points, n, AS_JET_K2, &rb);
-    if (!st && raised) st = as_blend_create(ctx, kd, smp.points, n, tens, rb, &fl->gblend);
+    if (!st && raised) st = as_blend_create(ctx, kd, smp.points, n, tens, rb, &fl->g.blend);
     if (!st && raised) {
         /* the blend borrows the points and the tree: the field keeps them */
-        fl->gxyz = smp.points;
-        fl->gn = n;
-        fl->gkd = kd;
+        fl->g.xyz = smp.points;
+        fl->g.n = n;
+        fl->g.kd = kd;
         smp.points = NULL;
         kd = NULL;
     }
@@ -1129,10 +1123,18 @@ static anistar_status fl_grade_sample(anistar_context *ctx, const as_surface *s,
     return st;
 }
 
-/* The blend's tensors as fitted (braw), graded with G along the mesh's triangles or the
- * lattice points' nearest-neighbour graph, into the blend (G == 0: as fitted). */
+/* The blend's tensors as fitted, graded with G along the mesh's triangles or the lattice
+ * points' nearest-neighbour graph, into the blend (G == 0: as fitted). The tensors as
+ * fitted are the blend's own until a first gradation, which keeps a copy (braw). */
 static anistar_status fl_regrade_blend(anistar_context *ctx, as_field *fl, double grad) {
-    size_t n = fl->nraw;
+    size_t n;
+    double *bt = as_blend_tensors(fl->blend, &n);
+    if (!fl->braw) {
+        if (!(fl->braw = as_alloc_array(ctx, n, 6 * sizeof(double))))
+            return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
+        memcpy(fl->braw, bt, n * 6 * sizeof(double));
+        fl->nraw = n;
+    }
     double *t = as_alloc_array(ctx, n, 6 * sizeof(double));
     if (!t) return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
     memcpy(t, fl->braw, n * 6 * sizeof(double));
@@ -1163,7 +1165,7 @@ static anistar_status fl_regrade_blend(anistar_context *ctx, as_field *fl, doubl
         if (!st) st = as_field_gradation_edges(ctx, t, fl->bxyz, ne, edges, grad, 1, NULL);
         as_free(ctx, edges, cap * 2 * sizeof *edges);
     }
-    if (!st) as_blend_set_tensors(fl->blend, t);
+    if (!st) memcpy(bt, t, n * 6 * sizeof(double));
     as_free(ctx, t, n * 6 * sizeof(double));
     return st;
 }
@@ -1189,24 +1191,14 @@ anistar_status as_field_set_gradation(anistar_context *ctx, as_field *fl, double
     } else if (fl->blend) {
         st = fl_regrade_blend(ctx, fl, grad);
     } else {
-        as_blend *ob = fl->gblend;
-        double *ox = fl->gxyz;
-        size_t on = fl->gn;
-        as_kdtree *okd = fl->gkd;
-        fl->gblend = NULL;
-        fl->gxyz = NULL;
-        fl->gn = 0;
-        fl->gkd = NULL;
+        /* the sample is of the field without its earlier gradation */
+        as_field_gsample old = fl->g;
+        memset(&fl->g, 0, sizeof fl->g);
         if (grad > 0) st = fl_grade_sample(ctx, fl->surf, grad, fl);
         if (st) { /* fl_grade_sample keeps nothing on failure */
-            fl->gblend = ob;
-            fl->gxyz = ox;
-            fl->gn = on;
-            fl->gkd = okd;
+            fl->g = old;
         } else {
-            as_blend_free(ctx, ob);
-            as_kdtree_free(ctx, okd);
-            as_free(ctx, ox, on * 3 * sizeof(double));
+            gsample_free(ctx, &old);
         }
     }
     if (!st) fl->grad = grad;

@@ -164,6 +164,15 @@ anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, cons
 #define AS_FIELD_GRAD_MAX_POINTS 262144
 void as_field_spec_clear(anistar_context *ctx, as_field_spec *sp);
 
+/* The graded sample of a field given at every point (owned): the blend of its graded
+ * tensors over its n points xyz (3 n) and their kd-tree, which the blend borrows. */
+typedef struct as_field_gsample {
+    as_blend *blend;
+    double *xyz;
+    size_t n;
+    as_kdtree *kd;
+} as_field_gsample;
+
 struct anistar_metric {
     anistar_context *ctx;    /* the creating context (memory; public error messages) */
     const as_surface *surf;  /* not owned; may be NULL for uniform fields */
@@ -178,14 +187,11 @@ struct anistar_metric {
     double *bxyz;            /* images: the points the blend is over (owned, 3 * bn) */
     size_t bn;
     as_kdtree *bkd;          /* images: their kd-tree (owned) */
-    double *braw;            /* the blend's tensors as fitted, before any gradation
-                                (owned, 6 * nraw): as_field_set_gradation grades a copy */
+    double *braw;            /* once graded: the blend's tensors as fitted (owned, 6 *
+                                nraw); as_field_set_gradation grades a copy of them */
     size_t nraw;
-    as_blend *gblend;        /* grad=G on a field given at every point: the blend of the
-                                graded sample (fl_grade_sample; NULL: none) (owned) */
-    double *gxyz;            /* its points (owned, 3 * gn) */
-    size_t gn;
-    as_kdtree *gkd;          /* their kd-tree (owned) */
+    as_field_gsample g;      /* grad=G on a field given at every point (fl_grade_sample;
+                                g.blend NULL: none) */
     double grad;             /* the gradation G applied (0: none) */
     double hdata;            /* the resolution of the data the field is fitted to (the
                                 automatic hmin; 0: none, the field is the user's own) */

@@ -332,8 +332,9 @@ void as_blend_free(anistar_context *ctx, as_blend *b) {
 
 double as_blend_radius(const as_blend *b) { return b->rb; }
 
-void as_blend_set_tensors(as_blend *b, const double *tensors) {
-    memcpy(b->tensor, tensors, b->n * 6 * sizeof(double));
+double *as_blend_tensors(as_blend *b, size_t *n) {
+    *n = b->n;
+    return b->tensor;
 }
 
 /* The squared distance as the kd-tree computes it (kdtree.h: one formula). */

@@ -121,8 +121,9 @@ anistar_status as_blend_create(anistar_context *ctx, const as_kdtree *kd, const 
                                size_t n, const double *tensors, double rb, as_blend **out);
 void as_blend_free(anistar_context *ctx, as_blend *b);
 double as_blend_radius(const as_blend *b);
-/* Replace the blend's n tensors (6 n values, copied; the points, radius and grid stay). */
-void as_blend_set_tensors(as_blend *b, const double *tensors);
+/* The blend's tensors (6 per vertex, *n vertices), to read or replace in place (the points,
+ * radius and grid do not depend on them). */
+double *as_blend_tensors(as_blend *b, size_t *n);
 
 /*
  * as_blend_eval — the blended tensor at p:

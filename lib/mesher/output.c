@@ -343,12 +343,50 @@ static double box_diagonal(const double box[6]) {
     return sqrt(d2);
 }
 
-/* The ball around a piece of the mesh with box box (lo[3] hi[3]): the box's center, three
- * times its diagonal (the piece and the part it came from around it). */
-static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const double box[6]) {
+/*
+ * Per piece of the mesh (tcomp: each triangle's piece, ncomp pieces): the reach of its
+ * facets, the largest distance from a facet's surface center to one of its vertices.
+ * Allocated in *reach on the first call (the caller frees ncomp entries).
+ */
+static anistar_status piece_reach(anistar_context *ctx, const as_starset *ss,
+                                  const anistar_mesh *m, const int32_t *tcomp, size_t ncomp,
+                                  double **reach) {
+    if (*reach) return ANISTAR_OK;
+    double *R = as_alloc_array(ctx, ncomp ? ncomp : 1, sizeof *R);
+    if (!R) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (final checks)");
+    for (size_t c = 0; c < ncomp; c++) R[c] = 0;
+    const as_trimesh *tm = &m->tm;
+    for (size_t t = 0; t < tm->nt; t++) {
+        as_gid g[3];
+        for (int i = 0; i < 3; i++) g[i] = m->gid[tm->tri[3 * t + i]];
+        as_sort_gid3(g);
+        const as_star *sv = ss->stars[g[0]];
+        int32_t fi = as_star_find(sv, g);
+        if (fi < 0) continue;
+        const double *c = sv->rf[fi].c;
+        for (int i = 0; i < 3; i++) {
+            const double *x = ss->xyz + 3 * (size_t)g[i];
+            double d = sqrt((c[0] - x[0]) * (c[0] - x[0]) + (c[1] - x[1]) * (c[1] - x[1]) +
+                            (c[2] - x[2]) * (c[2] - x[2]));
+            if (d > R[tcomp[t]]) R[tcomp[t]] = d;
+        }
+    }
+    *reach = R;
+    return ANISTAR_OK;
+}
+
+/* The ball around a piece of the mesh with box box (lo[3] hi[3]) and facet reach reach
+ * (piece_reach): the box's center, half its diagonal plus the reach.
+ * design: the piece is cut off from the part of S it belongs to where its facets, or the
+ * facets across from it, span a part thinner than they resolve; the sites whose facets
+ * can span it are the piece's own and those within one facet's reach of it. A larger ball
+ * halves alpha over S's unrelated features around it (on a noisy scan, the noise's medial
+ * axis: 14,500 feature insertions on the brain MRI with three times the diagonal). */
+static anistar_status trouble_piece(anistar_context *ctx, as_starset *ss, const double box[6],
+                                    double reach) {
     double c[3];
     for (int k = 0; k < 3; k++) c[k] = 0.5 * (box[k] + box[3 + k]);
-    return add_trouble(ctx, ss, c, 3 * box_diagonal(box));
+    return add_trouble(ctx, ss, c, 0.5 * box_diagonal(box) + reach);
 }
 
 /*
@@ -559,6 +597,7 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
     uint8_t *split = NULL;   /* per sample component: its sites are in two pieces or more */
     int32_t *pstart = NULL;  /* per component: its first triangle in ptri (built on demand) */
     int32_t *ptri = NULL;    /* triangles sorted by component */
+    double *creach = NULL;   /* per component: its facets' reach (built on demand) */
     s = ANISTAR_OK;
     if (!start || !inc || !uf || !queue || !flip || !tcomp || !vmap) goto nomem;
     /* vertex -> triangles (CSR) and components */
@@ -780,8 +819,11 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input component %d came out as two or more "
                         "pieces, one of them around (%.17g, %.17g, %.17g)",
                         (int)c, x[0], x[1], x[2]);
-                if ((s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc)) == ANISTAR_OK)
-                    s = trouble_piece(ctx, ss, cbox + 6 * (size_t)sc_out[c]);
+                if ((s = piece_reach(ctx, ss, m, tcomp, ncomp, &creach)) == ANISTAR_OK &&
+                    (s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc, creach[oc])) ==
+                        ANISTAR_OK)
+                    s = trouble_piece(ctx, ss, cbox + 6 * (size_t)sc_out[c],
+                                      creach[sc_out[c]]);
                 goto done;
             }
         } else {
@@ -794,7 +836,8 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                         "mesher: uncertified: input components %d and %d are joined in one "
                         "piece of the mesh around (%.17g, %.17g, %.17g)",
                         (int)cs[oc], (int)c, x[0], x[1], x[2]);
-                s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc);
+                if ((s = piece_reach(ctx, ss, m, tcomp, ncomp, &creach)) == ANISTAR_OK)
+                    s = trouble_piece(ctx, ss, cbox + 6 * (size_t)oc, creach[oc]);
                 goto done;
             }
             m->stats.components_joined++;
@@ -864,7 +907,9 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     x[0], x[1], x[2],
                     exact ? "covers no input component" : "bounds no region of its own");
         }
-        if ((s = trouble_piece(ctx, ss, cbox + 6 * oc)) != ANISTAR_OK) goto done;
+        if ((s = piece_reach(ctx, ss, m, tcomp, ncomp, &creach)) != ANISTAR_OK ||
+            (s = trouble_piece(ctx, ss, cbox + 6 * oc, creach[oc])) != ANISTAR_OK)
+            goto done;
     }
     if (*sig) goto done;
     if (as_surface_is_mesh(ss->surf)) {
@@ -882,7 +927,9 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                             "features finer than the sampling",
                             x[0], x[1], x[2], chi, want);
                 }
-                if ((s = trouble_piece(ctx, ss, cbox + 6 * oc)) != ANISTAR_OK) goto done;
+                if ((s = piece_reach(ctx, ss, m, tcomp, ncomp, &creach)) != ANISTAR_OK ||
+                    (s = trouble_piece(ctx, ss, cbox + 6 * oc, creach[oc])) != ANISTAR_OK)
+                    goto done;
             }
         }
         if (*sig) goto done;
@@ -909,5 +956,6 @@ done:
     as_free(ctx, split, (ss->nscomp > 0 ? (size_t)ss->nscomp : 1) * sizeof *split);
     if (pstart) as_free(ctx, pstart, (ncomp + 1) * sizeof *pstart);
     if (ptri) as_free(ctx, ptri, nt * sizeof *ptri);
+    if (creach) as_free(ctx, creach, (ncomp ? ncomp : 1) * sizeof *creach);
     return s;
 }

@@ -1281,9 +1281,11 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     fl->en = sp.has_en ? sp.en : 0;
     if (need_eps || !sp.has_en) st = fl_defaults(ctx, fl, spec, need_eps, !sp.has_en);
     if (!st && image_curv) st = fl_image_blend(ctx, s, &sp, fl);
-    /* design: images are not graded by default (docs/algorithm.md: on the brain the
-     * gradation made the feature-size rule insert 4.5 times as many points) */
-    if (!st && sp.has_grad && sp.grad > 0) st = as_field_set_gradation(ctx, fl, sp.grad);
+    /* design: the curvature of an image is a field from data, graded unless the SPEC says
+     * otherwise, as on meshes (docs/algorithm.md: as fitted, the skull and the liver do
+     * not finish at r0 1); the fields given at every point are graded when asked */
+    double g = sp.has_grad ? sp.grad : image_curv ? AS_FIELD_DATA_GRAD : 0;
+    if (!st && g > 0) st = as_field_set_gradation(ctx, fl, g);
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

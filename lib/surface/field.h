@@ -151,9 +151,9 @@ anistar_status as_field_spec_parse(anistar_context *ctx, const char *spec, as_fi
 anistar_status as_field_gradation_edges(anistar_context *ctx, double *tens, const double *xyz,
                                         size_t ne, const int32_t *edges, double grad,
                                         int keep_frame, int *changed);
-/* The gradation fields from triangle meshes get unless their SPEC says grad=G or grad=0
- * (none): curvature and sol (field.c, as_field_from_spec; chosen by measurement:
- * docs/algorithm.md). */
+/* The gradation fields from data get unless their SPEC says grad=G or grad=0 (none):
+ * curvature and sol on triangle meshes, curvature on images (field.c,
+ * as_field_from_spec; chosen by measurement: docs/algorithm.md). */
 #define AS_FIELD_DATA_GRAD 1.5
 /* grad=G on fields given at every point and on images' lattices (field.c,
  * fl_grade_sample): the neighbours of a point in the gradation graph, the sample points

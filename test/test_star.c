@@ -616,6 +616,84 @@ static void test_corners_generic(void **state) {
     anistar_context_free(ctx);
 }
 
+/* A metric on the torus R 5, r 1 that is nearly isotropic in the tangent plane (its two
+ * tangent eigenvalues 1% apart) with a tangent frame that turns by 40 radians per radian
+ * of azimuth, and a large normal eigenvalue. */
+static int turning_frame(const double p[3], const double n[3], double m[6], void *user) {
+    (void)user;
+    double az = atan2(p[1], p[0]), a[3] = {-sin(az), cos(az), 0}, b[3];
+    b[0] = n[1] * a[2] - n[2] * a[1];
+    b[1] = n[2] * a[0] - n[0] * a[2];
+    b[2] = n[0] * a[1] - n[1] * a[0];
+    double th = 40 * az, u[3], v[3];
+    for (int k = 0; k < 3; k++) {
+        u[k] = cos(th) * a[k] + sin(th) * b[k];
+        v[k] = -sin(th) * a[k] + cos(th) * b[k];
+    }
+    const double e1 = 0.04, e2 = 0.04 * 1.0201, en = 4; /* eigenvalues of M */
+    int idx[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    for (int i = 0; i < 6; i++) {
+        int r = idx[i][0], c = idx[i][1];
+        m[i] = e1 * u[r] * u[c] + e2 * v[r] * v[c] + en * n[r] * n[c];
+    }
+    return 0;
+}
+
+/* The rotation floor (starset.c) is a function of S and of M, not of M's tangent frame:
+ * where M is nearly isotropic in the tangent plane its frame is arbitrary (here it turns
+ * 40 times as fast as the azimuth), and two points of the torus's outer equator whose
+ * frames differ by 45 degrees get the same floored metric, raised by S's principal
+ * curvatures (1 around the tube, 1/6 along the equator). When the floor was raised along
+ * M's own frame, the first point was floored to |F u| 1.03 around the tube and 0.48 along
+ * the equator, the second to 0.83 in both (the normal turns at the same rate along both
+ * diagonals): gamma 1.75 between points 0.12 apart. */
+static void test_rotation_floor_frame(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    as_surface *s;
+    as_field *f;
+    assert_int_equal(as_implicit_builtin(ctx, "torus,R=5,r=1", &s), ANISTAR_OK);
+    assert_int_equal(as_field_custom(ctx, s, turning_frame, NULL, &f), ANISTAR_OK);
+    as_starset ss;
+    assert_int_equal(as_starset_init(&ss, ctx, s, f), ANISTAR_OK);
+    ss.rot_r0 = 0.3;
+    ss.rot_g = 1.5 - 1 / 1.5;
+    const double az = atan(1.0) / 40; /* 45 degrees of the frame */
+    const double p[2][3] = {{6, 0, 0}, {6 * cos(az), 6 * sin(az), 0}};
+    as_metric_frame raw[2], fl[2];
+    for (int i = 0; i < 2; i++) {
+        double m[6], n[3];
+        int sing = 0;
+        assert_int_equal(as_surface_normal_at(ctx, s, p[i], n, &sing), ANISTAR_OK);
+        assert_int_equal(as_field_eval(ctx, f, p[i], m), ANISTAR_OK);
+        assert_int_equal(as_metric_frame_init(&raw[i], m), 0);
+        assert_int_equal(as_starset_metric(&ss, p[i], &fl[i]), ANISTAR_OK);
+        /* raised along the tube's circle (the normal turns at rate 1 there) far above
+         * the raw 0.2, along the equator (rate 1/6) less */
+        const double az_i = atan2(p[i][1], p[i][0]);
+        double eq[3] = {-sin(az_i), cos(az_i), 0}, tube[3];
+        tube[0] = n[1] * eq[2] - n[2] * eq[1];
+        tube[1] = n[2] * eq[0] - n[0] * eq[2];
+        tube[2] = n[0] * eq[1] - n[1] * eq[0];
+        double lt = as_metric_dist(&fl[i], (const double[3]){0, 0, 0}, tube);
+        double le = as_metric_dist(&fl[i], (const double[3]){0, 0, 0}, eq);
+        print_message("point %d: |F tube| %.3f |F equator| %.3f (raw %.3f %.3f)\n", i, lt, le,
+                      raw[i].e[0], raw[i].e[1]);
+        assert_true(lt > 3 * raw[i].e[1]);
+        assert_true(le > 1.2 * raw[i].e[1] && le < 0.8 * lt);
+    }
+    double g_raw = as_metric_distortion(&raw[0], &raw[1]);
+    double g_fl = as_metric_distortion(&fl[0], &fl[1]);
+    print_message("gamma between the points: raw %.4f, floored %.4f\n", g_raw, g_fl);
+    /* the raw metrics differ by the normal's turn (0.02 rad, e_n / e_t = 10): 1.10 */
+    assert_true(g_raw < 1.15);
+    assert_true(g_fl < 1.05 && g_fl < g_raw);
+    as_starset_destroy(&ss);
+    as_field_free(f);
+    as_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fan_closed),
@@ -626,6 +704,7 @@ int main(void) {
         cmocka_unit_test(test_probe_vs_brute_force),
         cmocka_unit_test(test_memo_same_bits),
         cmocka_unit_test(test_facet_table_vs_rescan),
+        cmocka_unit_test(test_rotation_floor_frame),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -230,17 +230,17 @@ static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx,
         double f = floor_value(r0, w, e[j], G);
         if (f > e[k]) raise[k] = f * f - e[k] * e[k];
     }
-    double d[2][2] = {{raise[0], 0}, {0, raise[1]}};
-    add_tangent(m, d, t);
+    double tr[2][2] = {{raise[0], 0}, {0, raise[1]}};
+    add_tangent(m, tr, t);
     if (have != 3 || !(e[2] > 0)) return ANISTAR_OK;
     /* S in (t0, t1), symmetrised (its column k is the normal's turn along t_k) */
     double kap[2], dir[2][2];
     sym2_eigen(dn[0][0], 0.5 * (dn[0][1] + dn[1][0]), dn[1][1], kap, dir);
-    double q[2][2] = {{0, 0}, {0, 0}};
+    double Q[2][2] = {{0, 0}, {0, 0}};
     for (int i = 0; i < 2; i++) {
         double f = floor_value(r0, fabs(kap[i]), e[2], G);
         for (int a = 0; a < 2; a++)
-            for (int b = 0; b < 2; b++) q[a][b] += f * f * dir[i][a] * dir[i][b];
+            for (int b = 0; b < 2; b++) Q[a][b] += f * f * dir[i][a] * dir[i][b];
     }
     /* A, M's tangent part (raised above), and its Cholesky factor L */
     double a00 = as_sym3_quad(m, t[0], t[0]), a01 = as_sym3_quad(m, t[0], t[1]);
@@ -251,9 +251,9 @@ static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx,
     l11 = sqrt(l11);
     /* C = L^-1 Q L^-T (L^-1 = [[1/l00, 0], [-l10/(l00 l11), 1/l11]]) */
     double i00 = 1 / l00, i10 = -l10 / (l00 * l11), i11 = 1 / l11;
-    double c00 = i00 * i00 * q[0][0];
-    double c01 = i00 * (i10 * q[0][0] + i11 * q[0][1]);
-    double c11 = i10 * i10 * q[0][0] + 2 * i10 * i11 * q[0][1] + i11 * i11 * q[1][1];
+    double c00 = i00 * i00 * Q[0][0];
+    double c01 = i00 * (i10 * Q[0][0] + i11 * Q[0][1]);
+    double c11 = i10 * i10 * Q[0][0] + 2 * i10 * i11 * Q[0][1] + i11 * i11 * Q[1][1];
     double c[2], v[2][2];
     sym2_eigen(c00, c01, c11, c, v);
     if (!(c[1] > 1)) return ANISTAR_OK;

@@ -1525,7 +1525,6 @@ static anistar_status sweep_rules(refiner *R, size_t *pushed) {
     return s;
 }
 
-
 /*
  * Halve the alpha of the sites inside the balls where the final checks failed
  * (ss->trouble), down to AS_FEATURE_ALPHA_MIN, and queue their stars' facets that now

@@ -774,15 +774,16 @@ static inline double sym_quad(const double m[6], const double u[3]) {
            2 * (m[1] * u[0] * u[1] + m[2] * u[0] * u[2] + m[4] * u[1] * u[2]);
 }
 
-/* One directed edge of the gradation: eta^2 M_i intersected into M_j (*any set when M_j
- * changes); with keep_frame, M_j's eigenvalues raised instead, each to eta^2 M_i's value
- * along its eigenvector, in M_j's own frame (see as_field_gradation_edges). */
 /* The frames of a keep-frame gradation: per tensor its eigenvalues w (3) and eigenvectors
  * v (9), computed when first needed (have) and kept: a raise changes only eigenvalues. */
 typedef struct grade_frames {
     double *w, *v;
     uint8_t *have;
 } grade_frames;
+
+/* One directed edge of the gradation: eta^2 M_i intersected into M_j (*any set when M_j
+ * changes); with the frames gf (keep_frame), M_j's eigenvalues raised instead, each to
+ * eta^2 M_i's value along its eigenvector, in M_j's own frame (as_field_gradation_edges). */
 
 static anistar_status grade_edge(anistar_context *ctx, double *tens, const double *xyz,
                                  int32_t i, int32_t j, double lb, grade_frames *gf, int *any) {

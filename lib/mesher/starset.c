@@ -771,6 +771,38 @@ static anistar_status push_i32(anistar_context *ctx, int32_t **a, size_t *cap, s
     return ANISTAR_OK;
 }
 
+/* Sort ids b[0..n) with their distances d[] by (distance, id): heapsort (n may be large on
+ * a hostile input; deterministic, as the order is total). */
+static void sort_by_dist(int32_t *b, double *d, size_t n) {
+#define AS_SBD_LESS(i, j) (d[i] < d[j] || (d[i] == d[j] && b[i] < b[j]))
+#define AS_SBD_SWAP(i, j)                                                                   \
+    do {                                                                                    \
+        int32_t tb = b[i];                                                                  \
+        b[i] = b[j];                                                                        \
+        b[j] = tb;                                                                          \
+        double td = d[i];                                                                   \
+        d[i] = d[j];                                                                        \
+        d[j] = td;                                                                          \
+    } while (0)
+    for (size_t end = n, start = n / 2; end > 1;) {
+        size_t root;
+        if (start > 0) {
+            root = --start; /* building the max-heap */
+        } else {
+            AS_SBD_SWAP(0, end - 1); /* the largest to the end */
+            root = 0;
+            end--;
+        }
+        for (size_t child; (child = 2 * root + 1) < end; root = child) {
+            if (child + 1 < end && AS_SBD_LESS(child, child + 1)) child++;
+            if (!AS_SBD_LESS(root, child)) break;
+            AS_SBD_SWAP(root, child);
+        }
+    }
+#undef AS_SBD_LESS
+#undef AS_SBD_SWAP
+}
+
 /* A new epoch of workspace w's marks (cleared when the counter wraps). */
 static uint32_t ws_epoch(as_starset *ss, as_simws *w) {
     if (++w->epoch == 0) {
@@ -1231,10 +1263,15 @@ static anistar_status verify_star(as_starset *ss, as_simws *w, const as_star_env
             if (!whole && !(as_metric_dist(mf, c, x) <= reach)) continue;
             w->conflict_tests++;
             if (!as_star_conflicts_delaunay(st, mf, ss->xyz, x, q, NULL)) continue;
-            if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nc++, q)) != ANISTAR_OK)
+            if ((s = push_i32(ctx, &w->batch, &w->cap_batch, nc, q)) != ANISTAR_OK)
                 return s;
+            if (nc == w->cap_bdist &&
+                as_grow(ctx, (void **)&w->bdist, &w->cap_bdist, nc + 1, sizeof *w->bdist))
+                return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory");
+            w->bdist[nc++] = as_metric_dist(mf, c, x);
         }
         if (nc == 0) return verified(ss, st, reach);
+        sort_by_dist(w->batch, w->bdist, nc); /* nearest first: as_star_probe skips more */
         /* design: the star with those sites inserted (a probe of its own triangulation:
          * the same Delaunay star as one built from scratch, at the cost of the few tets
          * the sites change instead of every tet and facet of the star); when its facets

@@ -21,6 +21,7 @@ void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s) {
     as_free(ctx, s->rf, (size_t)s->cap_rf * sizeof *s->rf);
     as_free(ctx, s->itet, (size_t)s->cap_itet * sizeof *s->itet);
     as_free(ctx, s->isph, (size_t)s->cap_isph * sizeof *s->isph);
+    as_free(ctx, s->pball, (size_t)s->cap_pball * sizeof *s->pball);
     as_free(ctx, s->tflag, s->cap_tflag);
     as_free(ctx, s->fsph, s->cap_fsph * sizeof *s->fsph);
     as_free(ctx, s->sprev, (size_t)s->cap_sprev * sizeof *s->sprev);
@@ -1145,11 +1146,31 @@ anistar_status as_star_probe(const as_star_env *env, const as_star *st, const as
     for (int32_t i = 0; s == ANISTAR_OK && i < n; i++) {
         double y[3];
         as_metric_apply(mf, as_star_xyz(&t, env->xyz, gids[i]), y);
-        if (stale && (s = as_del3_vertex_tets(t.d, t.vloc, &sc->tets)) != ANISTAR_OK) break;
-        stale = 0;
+        if (stale) { /* v's tets and their filter balls (as star_update's) */
+            if ((s = as_del3_vertex_tets(t.d, t.vloc, &sc->tets)) != ANISTAR_OK ||
+                (s = grow_dbl(env->ctx, &sc->pball, &sc->cap_pball,
+                              4 * (int32_t)sc->tets.n)) != ANISTAR_OK)
+                break;
+            const double *V = as_del3_point(t.d, t.vloc);
+            for (size_t k = 0; k < sc->tets.n; k++) {
+                const int32_t *tv = as_del3_tet_vertices(t.d, sc->tets.a[k]);
+                const double *q[4];
+                int inf = as_del3_is_infinite(t.d, sc->tets.a[k]);
+                for (int j = 0; j < 4 && !inf; j++) q[j] = as_del3_point(t.d, tv[j]);
+                tet_sphere(inf ? NULL : q, V, sc->pball + 4 * k);
+            }
+            stale = 0;
+        }
         int hit = 0;
-        for (size_t k = 0; k < sc->tets.n && !hit; k++)
+        for (size_t k = 0; k < sc->tets.n && !hit; k++) {
+            const double *S = sc->pball + 4 * k;
+            if (S[3] >= 0) {
+                double dd[3];
+                sub3(y, S, dd);
+                if (dot3(dd, dd) > S[3]) continue; /* proven outside (see star_update) */
+            }
             hit = as_del3_in_sphere(t.d, sc->tets.a[k], y, gids[i]);
+        }
         if (!hit) continue;
         int ins;
         if ((s = star_add(env, &t, mf, gids[i], &ins)) != ANISTAR_OK) break;

@@ -189,6 +189,8 @@ typedef struct as_star_scratch {
     size_t cap_fsph;
     int sph_fresh;
     int probe;          /* as_star_probe: the facets' triples only (no surface centers) */
+    double *pball;      /* as_star_probe: the filter balls of v's current tets (tet_sphere) */
+    int32_t cap_pball;
     int32_t *sprev;
     int32_t cap_sprev;
     /* star_update: per tet slot, its index in the previous incident list (-1 between

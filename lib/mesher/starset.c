@@ -1224,8 +1224,8 @@ static anistar_status verified(as_starset *ss, as_star *st, double reach) {
  * corner box, where every facet is decided).
  */
 static anistar_status verify_star(as_starset *ss, as_simws *w, const as_star_env *env,
-                                  as_star_scratch *sc, int32_t v, double reach, double diag,
-                                  int *wrong) {
+                                  as_star_scratch *sc, const as_kdtree *recent, int32_t v,
+                                  double reach, double diag, int *wrong) {
     anistar_status s;
     anistar_context *ctx = env->ctx;
     as_star *st = ss->stars[v];
@@ -1247,13 +1247,22 @@ static anistar_status verify_star(as_starset *ss, as_simws *w, const as_star_env
             hi[k] = c[k] + h[k];
             if (lo[k] > ss->box_lo[k] || hi[k] < ss->box_hi[k]) whole = 0;
         }
-        if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &w->ids)) != ANISTAR_OK)
-            return s;
         if (again && first) {
+            /* the sites inserted since, from the tree of the recent sites when there is
+             * one: still right if none lies in the reach (the sites the check reads) */
+            if ((s = as_kdtree_box_any(ctx, recent ? recent : ss->kd, lo, hi, 0, &w->ids)) !=
+                ANISTAR_OK)
+                return s;
             int fresh = 0;
-            for (size_t k = 0; k < w->ids.n && !fresh; k++) fresh = w->ids.ids[k] >= st->vz_n;
+            for (size_t k = 0; k < w->ids.n && !fresh; k++) {
+                int32_t q = w->ids.ids[k];
+                fresh = q >= st->vz_n &&
+                        (whole || as_metric_dist(mf, c, ss->xyz + 3 * (size_t)q) <= reach);
+            }
             if (!fresh) return ANISTAR_OK;
         }
+        if ((s = as_kdtree_box_any(ctx, ss->kd, lo, hi, 0, &w->ids)) != ANISTAR_OK)
+            return s;
         /* the sites of the reach left out of the star that conflict with it */
         size_t nc = 0;
         for (size_t k = 0; k < w->ids.n; k++) {
@@ -1356,6 +1365,7 @@ typedef struct vz_job {
     as_starset *ss;
     int32_t *sel;
     uint8_t *wrong;
+    const as_kdtree *recent;
     double reach, diag;
 } vz_job;
 
@@ -1364,8 +1374,8 @@ static anistar_status vz_task(void *arg, int32_t k, int t, anistar_context *tctx
     vz_job *J = arg;
     as_starset *ss = J->ss;
     int wrong = 0;
-    anistar_status s = verify_star(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], J->sel[k],
-                                   J->reach, J->diag, &wrong);
+    anistar_status s = verify_star(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], J->recent,
+                                   J->sel[k], J->reach, J->diag, &wrong);
     J->wrong[k] = (uint8_t)wrong;
     return s;
 }
@@ -1377,6 +1387,7 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
     size_t nsel = 0, cap = 0;
     int32_t *sel = NULL;
     uint8_t *wrong = NULL;
+    as_kdtree *recent = NULL; /* the sites inserted since the stars' last checks */
     for (int32_t v = ss->first_site; v < ss->n; v++) {
         as_star *st = ss->stars[v];
         if (!st || !AS_STAR_BALL_ZONE(st)) continue;
@@ -1400,7 +1411,29 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
         for (int32_t k = 0; ss->stars[u] && k < ss->stars[u]->nrf; k++)
             if (ss->stars[u]->rf[k].r > rmax) rmax = ss->stars[u]->rf[k].r;
     const double diag = 4 * sqrt(3.0) * ss->surf->radius; /* the corner box's diagonal */
-    vz_job J = {ss, sel, wrong, AS_STARSET_VERIFY_REACH * rmax, diag};
+    /* design: a star found right before and unchanged since is checked again only if a
+     * site inserted since lies in its reach. Those sites are few after the first check
+     * (the brain: 145,000 such tests over five checks, a few hundred sites new at each),
+     * so they get a tree of their own: a query of the whole tree returned ~500 sites per
+     * star, most of them old. Built when they are at most a quarter of the sites. */
+    int32_t m = ss->n;
+    for (size_t k = 0; k < nsel; k++) {
+        const as_star *st = ss->stars[sel[k]];
+        if (st->vz_reach > 0 && st->vz_version == st->version && st->vz_n < m) m = st->vz_n;
+    }
+    if (m < ss->n && (size_t)(ss->n - m) <= (size_t)ss->n / 4) {
+        size_t nr = (size_t)(ss->n - m);
+        int32_t *ids = as_alloc(ss->ctx, nr * sizeof *ids);
+        if (!ids) {
+            s = as_fail(ss->ctx, ANISTAR_ENOMEM, "mesher: out of memory (zone check)");
+            goto done;
+        }
+        for (size_t k = 0; k < nr; k++) ids[k] = m + (int32_t)k;
+        s = as_kdtree_build(ss->ctx, ss->xyz + 3 * (size_t)m, ids, nr, &recent);
+        as_free(ss->ctx, ids, nr * sizeof *ids);
+        if (s != ANISTAR_OK) goto done;
+    }
+    vz_job J = {ss, sel, wrong, recent, AS_STARSET_VERIFY_REACH * rmax, diag};
     /* design: every selected star is checked first (in parallel with threads, each on its
      * thread's workspace: a check reads only its star and the sites), then the wrong ones
      * are opened and regrown in the stars' order (a regrowth changes only its own star,
@@ -1412,7 +1445,8 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
     } else {
         for (size_t k = 0; k < nsel && s == ANISTAR_OK; k++) {
             int w = 0;
-            s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, sel[k], J.reach, diag, &w);
+            s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, recent, sel[k], J.reach, diag,
+                            &w);
             wrong[k] = (uint8_t)w;
         }
     }
@@ -1429,6 +1463,7 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
         if ((s = regrow_star(ss, v, NULL)) != ANISTAR_OK) goto done;
     }
 done:
+    if (recent) as_kdtree_free(ss->ctx, recent);
     as_free(ss->ctx, sel, cap * sizeof *sel);
     as_free(ss->ctx, wrong, nsel);
     return s;

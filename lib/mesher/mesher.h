@@ -154,10 +154,18 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
  * Build the output mesh from the star set (output.c): consistent restricted facets of
  * surface stars, deduplicated, without corners and poles, vertices renumbered by global
  * id, triangles oriented by the outward normal at their surface center; statistics.
- * complete: 1 when refinement finished.
+ * complete: 1 when refinement finished. errors: 0 leaves the approximation error out of
+ * the statistics (0; the final checks' output: as_mesher_output_errors adds it to the one
+ * kept).
  */
 anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
-                                const as_mesher_counters *cnt, int complete, anistar_mesh **out);
+                                const as_mesher_counters *cnt, int complete, int errors,
+                                anistar_mesh **out);
+
+/* The approximation error statistics of output m of ss (as as_mesher_output computes them
+ * with errors = 1, bit for bit: the same samples, summed in the same order). OK or
+ * ENOMEM or an oracle error. */
+anistar_status as_mesher_output_errors(as_starset *ss, anistar_mesh *m);
 
 /*
  * The final checks of a complete run (anistar_mesher_run's contract for ANISTAR_OK), on

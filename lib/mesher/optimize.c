@@ -309,7 +309,7 @@ anistar_status as_mesher_optimize(as_starset *ss, const as_mesher_params *prm,
         c.t_init = S->seconds_init;
         c.t_refine = S->seconds_refine;
         c.t_total = S->seconds_total + oc.seconds;
-        s = as_mesher_output(ss, prm, &c, 1, &m2);
+        s = as_mesher_output(ss, prm, &c, 1, 1, &m2);
     }
     if (s != ANISTAR_OK) {
         as_mesh_free(m);

@@ -47,12 +47,46 @@ typedef struct as_ofacets {
     const as_starset *ss;
     as_ofacet *of;
     size_t n;
+    int errors; /* the approximation samples too */
 } as_ofacets;
+
+/* The approximation samples of the facet (a, b, c) (its vertices in the order of their
+ * ids): 4 fixed barycentric samples projected on S, each distance into o->esum (summed
+ * in the samples' order) and o->emax; o->ns samples projected; o->area its area. */
+static anistar_status facet_errors(const as_starset *ss, anistar_context *ctx, const double *a,
+                                   const double *b, const double *c, as_ofacet *o) {
+    static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                    {2.0 / 3, 1.0 / 6, 1.0 / 6},
+                                    {1.0 / 6, 2.0 / 3, 1.0 / 6},
+                                    {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double x[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                   u[0] * w[1] - u[1] * w[0]};
+    o->area = 0.5 * sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]);
+    o->esum = 0;
+    o->emax = 0;
+    o->ns = 0;
+    for (int q = 0; q < 4; q++) {
+        double p[3], pr[3];
+        for (int k = 0; k < 3; k++) p[k] = (bw[q][0] * a[k] + bw[q][1] * b[k]) + bw[q][2] * c[k];
+        anistar_status s = as_surface_project(ctx, ss->surf, p, pr);
+        if (s == ANISTAR_ENOSURFACE) continue; /* no projection found: skipped */
+        if (s != ANISTAR_OK) return s;
+        double d[3] = {pr[0] - p[0], pr[1] - p[1], pr[2] - p[2]};
+        double e = sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]);
+        if (e > o->emax) o->emax = e;
+        o->esum += e;
+        o->ns++;
+    }
+    return ANISTAR_OK;
+}
 
 /* Facets per task of ofacet_task. */
 #define AS_OUTPUT_CHUNK 64
 
-static anistar_status ofacet_one(const as_starset *ss, anistar_context *ctx, as_ofacet *o) {
+static anistar_status ofacet_one(const as_starset *ss, anistar_context *ctx, int errors,
+                                 as_ofacet *o) {
     const as_rfacet *f = o->f;
     const double *a = ss->xyz + 3 * (size_t)f->g[0], *b = ss->xyz + 3 * (size_t)f->g[1],
                  *c = ss->xyz + 3 * (size_t)f->g[2];
@@ -72,28 +106,11 @@ static anistar_status ofacet_one(const as_starset *ss, anistar_context *ctx, as_
         int32_t idx = as_star_find(sw, f->g);
         o->r[j] = idx >= 0 ? sw->rf[idx].r : -INFINITY;
     }
-    /* approximation error: 4 fixed barycentric samples projected on S, weighted by the
-     * triangle's area (the mean over area-uniform samples) */
-    static const double bw[4][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
-                                    {2.0 / 3, 1.0 / 6, 1.0 / 6},
-                                    {1.0 / 6, 2.0 / 3, 1.0 / 6},
-                                    {1.0 / 6, 1.0 / 6, 2.0 / 3}};
-    o->area = 0.5 * sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]);
-    o->esum = 0;
-    o->emax = 0;
+    /* approximation error: weighted by the triangle's area (the mean over area-uniform
+     * samples) */
+    o->area = o->esum = o->emax = 0;
     o->ns = 0;
-    for (int q = 0; q < 4; q++) {
-        double p[3], pr[3];
-        for (int k = 0; k < 3; k++) p[k] = (bw[q][0] * a[k] + bw[q][1] * b[k]) + bw[q][2] * c[k];
-        s = as_surface_project(ctx, ss->surf, p, pr);
-        if (s == ANISTAR_ENOSURFACE) continue; /* no projection found: skipped */
-        if (s != ANISTAR_OK) return s;
-        double d[3] = {pr[0] - p[0], pr[1] - p[1], pr[2] - p[2]};
-        double e = sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]);
-        if (e > o->emax) o->emax = e;
-        o->esum += e;
-        o->ns++;
-    }
+    if (errors && (s = facet_errors(ss, ctx, a, b, c, o)) != ANISTAR_OK) return s;
     double g01 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[1]]);
     double g02 = as_metric_distortion(&ss->mf[f->g[0]], &ss->mf[f->g[2]]);
     double g12 = as_metric_distortion(&ss->mf[f->g[1]], &ss->mf[f->g[2]]);
@@ -109,14 +126,15 @@ static anistar_status ofacet_task(void *arg, int32_t k, int t, anistar_context *
     size_t lo = (size_t)k * AS_OUTPUT_CHUNK, hi = lo + AS_OUTPUT_CHUNK;
     if (hi > O->n) hi = O->n;
     for (size_t i = lo; i < hi; i++) {
-        anistar_status s = ofacet_one(O->ss, ctx, &O->of[i]);
+        anistar_status s = ofacet_one(O->ss, ctx, O->errors, &O->of[i]);
         if (s != ANISTAR_OK) return s;
     }
     return ANISTAR_OK;
 }
 
 anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
-                                const as_mesher_counters *cnt, int complete, anistar_mesh **out) {
+                                const as_mesher_counters *cnt, int complete, int errors,
+                                anistar_mesh **out) {
     anistar_context *ctx = ss->ctx;
     anistar_status s;
     *out = NULL;
@@ -179,7 +197,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
      * the facets' order: the same mesh and the same statistics, bit for bit, for any
      * thread count */
     {
-        as_ofacets O = {ss, of, nof};
+        as_ofacets O = {ss, of, nof, errors};
         int32_t nchunks = (int32_t)((nof + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK);
         if (ss->pool && nchunks >= 2) {
             s = as_pool_run(ss->pool, nchunks, ofacet_task, &O);
@@ -292,6 +310,63 @@ fail:
     as_free(ctx, of, cap_of * sizeof *of);
     as_free(ctx, map, (size_t)ss->n * sizeof *map);
     as_mesh_free(m);
+    return s;
+}
+
+/* The approximation samples of triangles [k * AS_OUTPUT_CHUNK, ...) of O->m (oerr_task). */
+typedef struct as_oerrs {
+    const as_starset *ss;
+    const anistar_mesh *m;
+    as_ofacet *of;
+} as_oerrs;
+
+static anistar_status oerr_task(void *arg, int32_t k, int t, anistar_context *ctx) {
+    (void)t;
+    const as_oerrs *E = arg;
+    const anistar_mesh *m = E->m;
+    size_t lo = (size_t)k * AS_OUTPUT_CHUNK, hi = lo + AS_OUTPUT_CHUNK;
+    if (hi > m->tm.nt) hi = m->tm.nt;
+    for (size_t i = lo; i < hi; i++) {
+        as_gid g[3];
+        for (int j = 0; j < 3; j++) g[j] = (as_gid)m->gid[m->tm.tri[3 * i + (size_t)j]];
+        as_sort_gid3(g); /* the facet's own order (the triangle may have been turned) */
+        const double *x = E->ss->xyz;
+        anistar_status s = facet_errors(E->ss, ctx, x + 3 * (size_t)g[0], x + 3 * (size_t)g[1],
+                                        x + 3 * (size_t)g[2], &E->of[i]);
+        if (s != ANISTAR_OK) return s;
+    }
+    return ANISTAR_OK;
+}
+
+anistar_status as_mesher_output_errors(as_starset *ss, anistar_mesh *m) {
+    anistar_context *ctx = ss->ctx;
+    anistar_mesh_stats *S = &m->stats;
+    S->approx_error_max = S->approx_error_mean = 0;
+    if (m->tm.nt == 0) return ANISTAR_OK;
+    as_ofacet *of = as_alloc_array(ctx, m->tm.nt, sizeof *of);
+    if (!of) return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (output)");
+    as_oerrs E = {ss, m, of};
+    int32_t nchunks = (int32_t)((m->tm.nt + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK);
+    anistar_status s = ANISTAR_OK;
+    if (ss->pool && nchunks >= 2) {
+        s = as_pool_run(ss->pool, nchunks, oerr_task, &E);
+    } else {
+        for (int32_t c = 0; c < nchunks && s == ANISTAR_OK; c++) s = oerr_task(&E, c, 0, ctx);
+    }
+    if (s == ANISTAR_OK) {
+        /* the sums of as_mesher_output, in its order (the triangles are its facets') */
+        double err_sum = 0, area_sum = 0;
+        for (size_t i = 0; i < m->tm.nt; i++) {
+            const as_ofacet *o = &of[i];
+            if (o->emax > S->approx_error_max) S->approx_error_max = o->emax;
+            if (o->ns) {
+                err_sum += o->area * o->esum / o->ns;
+                area_sum += o->area;
+            }
+        }
+        S->approx_error_mean = area_sum > 0 ? err_sum / area_sum : 0;
+    }
+    as_free(ctx, of, m->tm.nt * sizeof *of);
     return s;
 }
 

@@ -1886,7 +1886,9 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                 int ok = 0, refinable = 0;
                 uint64_t sig = 0;
                 double tc = now_seconds();
-                s = as_mesher_output(ss, prm, &R.cnt, 1, &done);
+                /* design: the approximation error (4 projections per facet, a tenth of
+                 * the brain's run) only for the output kept (as_mesher_output_errors) */
+                s = as_mesher_output(ss, prm, &R.cnt, 1, 0, &done);
                 if (s == ANISTAR_OK) s = as_mesher_certify(ss, done, &ok, &refinable, &sig);
                 t_check = now_seconds() - tc;
                 if (s != ANISTAR_OK) break;
@@ -2016,8 +2018,9 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             *out = done; /* the checked output (certified, or not: the message says why) */
             done = NULL;
             (*out)->stats.complete = complete;
+            s = as_mesher_output_errors(ss, *out);
         } else {
-            s = as_mesher_output(ss, prm, &R.cnt, 0, out);
+            s = as_mesher_output(ss, prm, &R.cnt, 0, 1, out);
         }
         if (s == ANISTAR_OK && complete && prm->optimize) {
             /* the optimised mesh is a new output: checked again */

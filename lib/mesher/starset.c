@@ -197,11 +197,16 @@ static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx,
     double e[3];
     for (int k = 0; k < 3; k++) e[k] = sqrt(fmax(as_sym3_quad(m, fr[k], fr[k]), 0));
     const double G = ss->rot_g, r0 = ss->rot_r0;
+    /* S, the shape operator: the surface's own where it has one (an implicit surface:
+     * from f's Hessian, exact); else measured below by the normal's differences */
+    as_surface_frame sf;
+    if ((s = as_surface_frame_at(ctx, ss->surf, p, &sf)) != ANISTAR_OK) return s;
+    const int own_s = !sf.singular && isfinite(sf.k[0]) && isfinite(sf.k[1]);
     double raise[2] = {0, 0};
     double dn[2][2]; /* dn[k][a]: the normal's turn along t_k, its component along t_a */
     int have = 0;    /* bit k: dn[k] measured */
     for (int k = 0; k < 2; k++) {
-        if (!(e[k] > 0)) continue;
+        if (!(e[k] > 0) || (own_s && !(e[k] < e[1 - k]))) continue; /* nothing to measure */
         const double *tk = t[k];
         double h = fmin(0.1 * r0 / e[k], 1e-2 * ss->surf->radius);
         double y[3] = {p[0] + h * tk[0], p[1] + h * tk[1], p[2] + h * tk[2]}, q[3];
@@ -232,10 +237,21 @@ static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx,
     }
     double tr[2][2] = {{raise[0], 0}, {0, raise[1]}};
     add_tangent(m, tr, t);
-    if (have != 3 || !(e[2] > 0)) return ANISTAR_OK;
-    /* S in (t0, t1), symmetrised (its column k is the normal's turn along t_k) */
+    if (!(e[2] > 0)) return ANISTAR_OK;
+    /* S's principal rates and directions in (t0, t1): the surface's own, or the normal's
+     * differences along t0 and t1, symmetrised */
     double kap[2], dir[2][2];
-    sym2_eigen(dn[0][0], 0.5 * (dn[0][1] + dn[1][0]), dn[1][1], kap, dir);
+    if (own_s) {
+        for (int i = 0; i < 2; i++) {
+            kap[i] = sf.k[i];
+            for (int a = 0; a < 2; a++)
+                dir[i][a] = t[a][0] * sf.d[3 * i] + t[a][1] * sf.d[3 * i + 1] +
+                            t[a][2] * sf.d[3 * i + 2];
+        }
+    } else {
+        if (have != 3) return ANISTAR_OK;
+        sym2_eigen(dn[0][0], 0.5 * (dn[0][1] + dn[1][0]), dn[1][1], kap, dir);
+    }
     double Q[2][2] = {{0, 0}, {0, 0}};
     for (int i = 0; i < 2; i++) {
         double f = floor_value(r0, fabs(kap[i]), e[2], G);

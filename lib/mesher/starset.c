@@ -169,8 +169,14 @@ static void add_tangent(double m[6], double d[2][2], double t[2][3]) {
  *    turn there costs nothing);
  *  - the normal turning with S mixes a tangent direction with n: its rate along a tangent
  *    direction u is |S u|, S the shape operator, whose principal directions need not be
- *    M's. The columns of S in (t0, t1) are measured by the normal's differences along t0
- *    and t1; along S's principal directions d_i (rates |kappa_i|) the floors f_i give
+ *    M's. S is the surface's own (as_surface_frame_at: for an implicit surface from f's
+ *    Hessian, exact); measuring it by the normal's differences along M's t0 and t1, as
+ *    before session 20, made it depend on that frame, arbitrary where M is isotropic in
+ *    the tangent plane (the flat top of the double torus's junction, where the field is
+ *    its eps floor and e_n is 42 times larger: sites 1e-4 apart floored to 0.77 and 1.33,
+ *    gamma 1.76 between them, 55,456 V at r0 0.2 and no end at r0 0.5); the differences
+ *    remain for a surface without a frame. Along S's principal directions d_i (rates
+ *    |kappa_i|) the floors f_i give
  *    the tensor Q = sum f_i^2 d_i d_i^T, and M's tangent part A becomes the intersection
  *    of A and Q (simultaneous reduction: A = L L^T, C = L^-1 Q L^-T = V diag(c) V^T,
  *    A <- L V diag(max(c, 1)) V^T L^T), whose unit disk is the largest of that family
@@ -180,9 +186,9 @@ static void add_tangent(double m[6], double d[2][2], double t[2][3]) {
  *    tangent eigenvalues within 6%, were floored to (0.19, 0.22) and (0.08, 0.22) in
  *    different frames, gamma 2-3 between them below hmin, and rule 3 inserted without
  *    end (73,543 V in 120 s, estimate 6,295; without the floor 2,991 V in 0.6 s).
- * The rates come from the field itself, by differences: the frame at q = proj(p + h t_k),
- * h a twentieth of the span (at most 1e-2 R), built the same way from M_q and the normal
- * at q. Both raises add positive semidefinite terms: M stays a metric, and the result
+ * The frame's rates come from the field itself, by differences: the frame at
+ * q = proj(p + h t_k), h a twentieth of the span (at most 1e-2 R), built the same way
+ * from M_q and the normal at q (measured only where e_k < e_j: elsewhere x is 0). Both raises add positive semidefinite terms: M stays a metric, and the result
  * is continuous where M, S and the rates are.
  */
 static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx, const double p[3],

@@ -188,8 +188,9 @@ static void add_tangent(double m[6], double d[2][2], double t[2][3]) {
  *    end (73,543 V in 120 s, estimate 6,295; without the floor 2,991 V in 0.6 s).
  * The frame's rates come from the field itself, by differences: the frame at
  * q = proj(p + h t_k), h a twentieth of the span (at most 1e-2 R), built the same way
- * from M_q and the normal at q (measured only where e_k < e_j: elsewhere x is 0). Both raises add positive semidefinite terms: M stays a metric, and the result
- * is continuous where M, S and the rates are.
+ * from M_q and the normal at q (measured only where e_k < e_j: elsewhere x is 0). Both
+ * raises add positive semidefinite terms: M stays a metric, and the result is continuous
+ * where M, S and the rates are.
  */
 static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx, const double p[3],
                                      double m[6]) {

@@ -114,17 +114,19 @@ static anistar_status grow_tflag(anistar_context *ctx, as_star *st) {
 
 static void tet_sphere(const double *const *q, const double V[3], double S[4]);
 
+/* tet_sphere of live tet t of the open triangulation d, V its center's stored point. */
+static void del3_tet_sphere(const as_del3 *d, int32_t t, const double V[3], double S[4]) {
+    const int32_t *tv = as_del3_tet_vertices(d, t);
+    const double *q[4];
+    int inf = as_del3_is_infinite(d, t);
+    for (int k = 0; k < 4 && !inf; k++) q[k] = as_del3_point(d, tv[k]);
+    tet_sphere(inf ? NULL : q, V, S);
+}
+
 /* The sphere of the i-th incident tet of open star st (computed if left for later). */
 static const double *inc_sphere(as_star *st, int32_t i) {
     double *S = st->isph + 4 * (size_t)i;
-    if (S[3] == SPH_LATER) {
-        const as_del3 *d = st->d;
-        const int32_t *tv = as_del3_tet_vertices(d, st->itet[i]);
-        const double *q[4];
-        int inf = as_del3_is_infinite(d, st->itet[i]);
-        for (int k = 0; k < 4 && !inf; k++) q[k] = as_del3_point(d, tv[k]);
-        tet_sphere(inf ? NULL : q, as_del3_point(d, st->vloc), S);
-    }
+    if (S[3] == SPH_LATER) del3_tet_sphere(st->d, st->itet[i], as_del3_point(st->d, st->vloc), S);
     return S;
 }
 
@@ -546,11 +548,7 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
                 continue;
             }
             sc->sprev[i] = -1;
-            const int32_t *tv = as_del3_tet_vertices(d, t);
-            const double *q[4];
-            int inf = as_del3_is_infinite(d, t);
-            for (int k = 0; k < 4 && !inf; k++) q[k] = as_del3_point(d, tv[k]);
-            tet_sphere(inf ? NULL : q, V, st->isph + 4 * (size_t)i);
+            del3_tet_sphere(d, t, V, st->isph + 4 * (size_t)i);
         }
     }
     if (defer)
@@ -1152,13 +1150,8 @@ anistar_status as_star_probe(const as_star_env *env, const as_star *st, const as
                               4 * (int32_t)sc->tets.n)) != ANISTAR_OK)
                 break;
             const double *V = as_del3_point(t.d, t.vloc);
-            for (size_t k = 0; k < sc->tets.n; k++) {
-                const int32_t *tv = as_del3_tet_vertices(t.d, sc->tets.a[k]);
-                const double *q[4];
-                int inf = as_del3_is_infinite(t.d, sc->tets.a[k]);
-                for (int j = 0; j < 4 && !inf; j++) q[j] = as_del3_point(t.d, tv[j]);
-                tet_sphere(inf ? NULL : q, V, sc->pball + 4 * k);
-            }
+            for (size_t k = 0; k < sc->tets.n; k++)
+                del3_tet_sphere(t.d, sc->tets.a[k], V, sc->pball + 4 * k);
             stale = 0;
         }
         int hit = 0;

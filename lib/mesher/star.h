@@ -245,8 +245,9 @@ anistar_status as_star_insert(const as_star_env *env, as_star *st, const as_metr
  * unchanged: st is unpacked into sc's working triangulation, the sites are inserted
  * there in the given order (nearest to v first is fastest), each only if it still
  * conflicts with a tet around v (the others cannot change v's tets), the facets are
- * recomputed where tets changed (as as_star_insert does), and nothing is packed back. *rf, *nrf: the facets, sorted by (g0, g1, g2), in sc's scratch
- * (valid until sc's next use). The triangulation is unique (Delaunay with symbolic
+ * recomputed where tets changed (as as_star_insert does), and nothing is packed back.
+ * *rf, *nrf: the facets, sorted by (g0, g1, g2), in sc's scratch (valid until sc's next
+ * use). The triangulation is unique (Delaunay with symbolic
  * perturbation), so the facets are those of a star built from scratch with st's sites
  * and these. Only their triples are computed: the new facets' surface centers are not
  * searched (c = v, r = 0). Errors as as_star_insert.

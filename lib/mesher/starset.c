@@ -189,21 +189,29 @@ static void add_tangent(double m[6], double d[2][2], double t[2][3]) {
  */
 static anistar_status rotation_floor(const as_starset *ss, anistar_context *ctx, const double p[3],
                                      double m[6]) {
+    /* S, the shape operator, and the normal: the surface's own frame where it has one (an
+     * implicit surface: from f's Hessian, exact); where its curvature is not finite, S is
+     * measured below by the normal's differences */
+    as_surface_frame sf;
+    anistar_status s = as_surface_frame_at(ctx, ss->surf, p, &sf);
+    if (s == ANISTAR_EINVAL) { /* a curvature that is not finite: no own S */
+        sf.singular = 1;
+        s = ANISTAR_OK;
+    }
+    if (s != ANISTAR_OK) return s;
+    const int own_s = !sf.singular;
     int sing = 0;
     double n[3];
-    anistar_status s = as_surface_normal_at(ctx, ss->surf, p, n, &sing);
-    if (s != ANISTAR_OK || sing) return s;
+    if (own_s)
+        memcpy(n, sf.n, sizeof n);
+    else if ((s = as_surface_normal_at(ctx, ss->surf, p, n, &sing)) != ANISTAR_OK || sing)
+        return s;
     double t[2][3];
     tangent_frame(m, n, t);
     const double *fr[3] = {t[0], t[1], n};
     double e[3];
     for (int k = 0; k < 3; k++) e[k] = sqrt(fmax(as_sym3_quad(m, fr[k], fr[k]), 0));
     const double G = ss->rot_g, r0 = ss->rot_r0;
-    /* S, the shape operator: the surface's own where it has one (an implicit surface:
-     * from f's Hessian, exact); else measured below by the normal's differences */
-    as_surface_frame sf;
-    if ((s = as_surface_frame_at(ctx, ss->surf, p, &sf)) != ANISTAR_OK) return s;
-    const int own_s = !sf.singular && isfinite(sf.k[0]) && isfinite(sf.k[1]);
     double raise[2] = {0, 0};
     double dn[2][2]; /* dn[k][a]: the normal's turn along t_k, its component along t_a */
     int have = 0;    /* bit k: dn[k] measured */

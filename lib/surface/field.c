@@ -784,7 +784,6 @@ typedef struct grade_frames {
 /* One directed edge of the gradation: eta^2 M_i intersected into M_j (*any set when M_j
  * changes); with the frames gf (keep_frame), M_j's eigenvalues raised instead, each to
  * eta^2 M_i's value along its eigenvector, in M_j's own frame (as_field_gradation_edges). */
-
 static anistar_status grade_edge(anistar_context *ctx, double *tens, const double *xyz,
                                  int32_t i, int32_t j, double lb, grade_frames *gf, int *any) {
     const double *mi = tens + 6 * (size_t)i, *xi = xyz + 3 * (size_t)i, *xj = xyz + 3 * (size_t)j;

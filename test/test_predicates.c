@@ -703,6 +703,57 @@ static void test_insphere_near_degenerate(void **state) {
     oracle_clear(&o);
 }
 
+/* Stage B' (double-double) of the adaptive insphere, where the mesher meets it: five points
+ * rounded onto one sphere (random directions normalised: what an isotropic metric on a
+ * sphere gives; stage A fails for most), at random centres and scales; and integer points
+ * within 2 of an integer sphere of radius 1000 (exact differences and determinants far
+ * below B's bound relative to the permanent: B' must defer to the exact-differences rule).
+ * Signs against the oracle. */
+static void test_insphere_on_sphere(void **state) {
+    (void)state;
+    oracle o;
+    oracle_init(&o);
+    tu_rng r = {606};
+    double p[5][3];
+    tally t = {0, 0, 0, 0}, ti = {0, 0, 0, 0};
+    for (long it = 0; it < 200000; it++) {
+        double s = ldexp(1.0, (int)(tu_rng_u64(&r) % 40) - 20) * tu_rng_range(&r, 1, 2);
+        double off[3];
+        for (int k = 0; k < 3; k++)
+            off[k] = it % 2 ? 0 : s * tu_rng_range(&r, -1e4, 1e4);
+        for (int i = 0; i < 5; i++) {
+            double v[3], l;
+            do {
+                for (int k = 0; k < 3; k++) v[k] = tu_rng_range(&r, -1, 1);
+                l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            } while (l < 0.1 || l > 1);
+            for (int k = 0; k < 3; k++) p[i][k] = off[k] + s * (v[k] / l);
+        }
+        tally_add(&t, check_insphere(&o, (const double(*)[3])p, it, "on a sphere"));
+    }
+    for (long it = 0; it < 20000; it++) {
+        for (int i = 0; i < 5; i++) {
+            double v[3];
+            for (;;) {
+                double l;
+                do {
+                    for (int k = 0; k < 3; k++) v[k] = tu_rng_range(&r, -1, 1);
+                    l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+                } while (l < 0.1 || l > 1);
+                for (int k = 0; k < 3; k++) v[k] = round(1000.0 * v[k] / l);
+                double n2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                if (fabs(n2 - 1e6) <= 2) break;
+            }
+            memcpy(p[i], v, sizeof v);
+        }
+        tally_add(&ti, check_insphere(&o, (const double(*)[3])p, it, "near an integer sphere"));
+    }
+    /* both families must reach every sign (the integer one is often exactly 0) */
+    assert_true(t.pos > 10000 && t.neg > 10000);
+    assert_true(ti.pos > 1000 && ti.neg > 1000 && ti.zero > 0);
+    oracle_clear(&o);
+}
+
 static void test_degenerate(void **state) {
     (void)state;
     oracle o;
@@ -1070,6 +1121,7 @@ int main(void) {
         cmocka_unit_test(test_insphere_random),
         cmocka_unit_test(test_orient3d_near_degenerate),
         cmocka_unit_test(test_insphere_near_degenerate),
+        cmocka_unit_test(test_insphere_on_sphere),
         cmocka_unit_test(test_degenerate),
         cmocka_unit_test(test_range_extremes),
         cmocka_unit_test(test_sos_properties),

@@ -125,6 +125,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "geom/dd.h"
 #include "geom/expansion.h"
 #include "geom/predicates.h"
 #include "geom/sort.h"
@@ -1589,89 +1590,35 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
 
 /* ---- circumcenter ------------------------------------------------------------------------ */
 
-/* Double-double arithmetic (value hi + lo, |lo| <= ulp(hi)/2), for nearly flat tets. Needs
- * -ffp-contract=off (the build sets it). */
-typedef struct dd {
-    double hi, lo;
-} dd;
-
-static inline dd dd_two_sum(double a, double b) {
-    double s = a + b, bb = s - a;
-    dd r = {s, (a - (s - bb)) + (b - bb)};
-    return r;
-}
-static inline dd dd_quick(double a, double b) {
-    double s = a + b;
-    dd r = {s, b - (s - a)};
-    return r;
-}
-static inline void dd_split(double a, double *hi, double *lo) {
-    double c = 134217729.0 * a; /* 2^27 + 1 */
-    *hi = c - (c - a);
-    *lo = a - *hi;
-}
-static inline dd dd_two_prod(double a, double b) {
-    double p = a * b, ah, al, bh, bl;
-    dd_split(a, &ah, &al);
-    dd_split(b, &bh, &bl);
-    dd r = {p, ((ah * bh - p) + ah * bl + al * bh) + al * bl};
-    return r;
-}
-static inline dd dd_add(dd a, dd b) {
-    dd s = dd_two_sum(a.hi, b.hi), t = dd_two_sum(a.lo, b.lo);
-    s.lo += t.hi;
-    s = dd_quick(s.hi, s.lo);
-    s.lo += t.lo;
-    return dd_quick(s.hi, s.lo);
-}
-static inline dd dd_neg(dd a) {
-    dd r = {-a.hi, -a.lo};
-    return r;
-}
-static inline dd dd_sub(dd a, dd b) { return dd_add(a, dd_neg(b)); }
-static inline dd dd_mul(dd a, dd b) {
-    dd p = dd_two_prod(a.hi, b.hi);
-    p.lo += a.hi * b.lo + a.lo * b.hi;
-    return dd_quick(p.hi, p.lo);
-}
-static inline dd dd_div(dd a, dd b) {
-    double q1 = a.hi / b.hi;
-    dd r = dd_sub(a, dd_mul(b, (dd){q1, 0}));
-    double q2 = r.hi / b.hi;
-    r = dd_sub(r, dd_mul(b, (dd){q2, 0}));
-    double q3 = r.hi / b.hi;
-    dd q = dd_quick(q1, q2);
-    return dd_add(q, (dd){q3, 0});
-}
-
 /* The center relative to a of the sphere through a, a+u, a+v, a+w, in double-double from
  * the exact differences. */
 static void circumcenter_dd(const double *a, const double *b, const double *c,
                             const double *e, double out[3]) {
-    dd u[3], v[3], w[3];
+    as_dd u[3], v[3], w[3];
     for (int i = 0; i < 3; i++) {
-        u[i] = dd_two_sum(b[i], -a[i]);
-        v[i] = dd_two_sum(c[i], -a[i]);
-        w[i] = dd_two_sum(e[i], -a[i]);
+        u[i] = as_dd_two_sum(b[i], -a[i]);
+        v[i] = as_dd_two_sum(c[i], -a[i]);
+        w[i] = as_dd_two_sum(e[i], -a[i]);
     }
-    dd vw[3], wu[3], uv[3];
+    as_dd vw[3], wu[3], uv[3];
     for (int i = 0; i < 3; i++) {
         int j = (i + 1) % 3, k = (i + 2) % 3;
-        vw[i] = dd_sub(dd_mul(v[j], w[k]), dd_mul(v[k], w[j]));
-        wu[i] = dd_sub(dd_mul(w[j], u[k]), dd_mul(w[k], u[j]));
-        uv[i] = dd_sub(dd_mul(u[j], v[k]), dd_mul(u[k], v[j]));
+        vw[i] = as_dd_sub(as_dd_mul(v[j], w[k]), as_dd_mul(v[k], w[j]));
+        wu[i] = as_dd_sub(as_dd_mul(w[j], u[k]), as_dd_mul(w[k], u[j]));
+        uv[i] = as_dd_sub(as_dd_mul(u[j], v[k]), as_dd_mul(u[k], v[j]));
     }
-    dd nu = {0, 0}, nv = {0, 0}, nw = {0, 0}, det = {0, 0};
+    as_dd nu = {0, 0}, nv = {0, 0}, nw = {0, 0}, det = {0, 0};
     for (int i = 0; i < 3; i++) {
-        nu = dd_add(nu, dd_mul(u[i], u[i]));
-        nv = dd_add(nv, dd_mul(v[i], v[i]));
-        nw = dd_add(nw, dd_mul(w[i], w[i]));
-        det = dd_add(det, dd_mul(u[i], vw[i]));
+        nu = as_dd_add(nu, as_dd_mul(u[i], u[i]));
+        nv = as_dd_add(nv, as_dd_mul(v[i], v[i]));
+        nw = as_dd_add(nw, as_dd_mul(w[i], w[i]));
+        det = as_dd_add(det, as_dd_mul(u[i], vw[i]));
     }
-    dd den = dd_add(det, det);
+    as_dd den = as_dd_add(det, det);
     for (int i = 0; i < 3; i++) {
-        dd num = dd_add(dd_add(dd_mul(nu, vw[i]), dd_mul(nv, wu[i])), dd_mul(nw, uv[i]));
-        dd x = dd_div(num, den);
+        as_dd num = as_dd_add(as_dd_add(as_dd_mul(nu, vw[i]), as_dd_mul(nv, wu[i])),
+                              as_dd_mul(nw, uv[i]));
+        as_dd x = as_dd_div(num, den);
         out[i] = a[i] + (x.hi + x.lo);
     }
 }

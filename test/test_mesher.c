@@ -297,6 +297,44 @@ static void test_approx_error_sphere(void **state) {
     anistar_context_free(ctx);
 }
 
+/* One sphere, bound=1.25 and bound=1e4: the automatic hmin follows the surface's size,
+ * not a loose bounding radius (with 1e-4 of the bound it was 1, and the sphere was
+ * "certified" with 9 vertices and a mean error of a quarter of its radius). The loose run
+ * must be certified and close to the tight one. */
+static void run_sphere_bound(const char *spec, anistar_mesh_stats *S) {
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    anistar_metric *m;
+    anistar_mesher *me;
+    anistar_mesh *mesh = NULL;
+    assert_int_equal(anistar_surface_builtin(ctx, spec, &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.15), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+    anistar_mesh_get_stats(mesh, S);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+static void test_loose_bound(void **state) {
+    (void)state;
+    anistar_mesh_stats tight, loose;
+    run_sphere_bound("sphere,bound=1.25", &tight);
+    run_sphere_bound("sphere,bound=1e4", &loose);
+    assert_true(tight.complete && loose.complete);
+    assert_true(loose.closed_manifold && loose.euler_characteristic == 2);
+    assert_true(loose.hmin <= 1e-3);
+    double rv = (double)loose.vertices / (double)tight.vertices;
+    double re = loose.approx_error_mean / tight.approx_error_mean;
+    if (!(rv > 0.9 && rv < 1.1 && re > 0.8 && re < 1.25))
+        fail_msg("loose bound: %zu V, error %g; tight: %zu V, error %g", loose.vertices,
+                 loose.approx_error_mean, tight.vertices, tight.approx_error_mean);
+}
+
 static void test_determinism_and_threads(void **state) {
     (void)state;
     job a1 = {"sphere", "shock,phi=0.3", 1.0, 2.0, 7, 0, 0, NULL, NULL, 0};
@@ -626,6 +664,7 @@ int main(void) {
         cmocka_unit_test(test_max_vertices_incomplete),
         cmocka_unit_test(test_id_limit),
         cmocka_unit_test(test_approx_error_sphere),
+        cmocka_unit_test(test_loose_bound),
         cmocka_unit_test(test_determinism_and_threads),
         cmocka_unit_test(test_batches_against_one_at_a_time),
     };

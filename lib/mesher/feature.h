@@ -44,8 +44,9 @@ typedef struct as_feature {
     double floor_e; /* Euclidean floor of the feature size, the surface's own resolution:
                        an eighth of the mean edge of a triangle mesh (sharp creases have
                        lfs 0), half the sampler's grid spacing for an image (about a voxel:
-                       noise), 1e-4 R for an implicit function; it keeps refinement finite
-                       where lfs tends to 0 */
+                       noise), 1e-4 of an implicit function's size (its bounding radius
+                       R, or the diameter of its sample's box when that is smaller); it
+                       keeps refinement finite where lfs tends to 0 */
 } as_feature;
 
 /*

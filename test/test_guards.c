@@ -495,25 +495,32 @@ static void test_refusal(void **state) {
 }
 
 /* The estimate against the final count, on runs sized by r0 (the implicit sphere, a
- * torus, and a triangle mesh): within 15%. */
+ * torus, and a triangle mesh) and by the approximation bound (--approx: the sphere, and
+ * the torus whose inner half is a saddle): within 15%. */
 static void test_estimate(void **state) {
     (void)state;
     static const struct {
         const char *spec;
-        double r0;
-    } cases[] = {{"sphere", 0.05}, {"torus,R=3,r=1", 0.1}, {AS_TEST_DATA_DIR "/knot1.off", 0.03}};
+        double r0, approx;
+    } cases[] = {{"sphere", 0.05, 0},
+                 {"torus,R=3,r=1", 0.1, 0},
+                 {AS_TEST_DATA_DIR "/knot1.off", 0.03, 0},
+                 {"sphere", 1, 1e-3},
+                 {"torus,R=3,r=1", 1, 2e-3}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         as_mesher_params p;
         as_mesher_params_default(&p);
         p.r0 = cases[i].r0;
+        p.approx = cases[i].approx;
         run r;
         run_keep(&r, cases[i].spec, "euclidean", &p);
         assert_int_equal(r.st, ANISTAR_OK);
         const anistar_mesh_stats *S = &r.mesh->stats;
         double rel = (S->estimate_vertices - (double)S->vertices) / (double)S->vertices;
-        print_message("estimate %-28s r0 %-5g: %6.0f for %6zu vertices (%+.1f%%); memory %.1f "
-                      "MB for %.1f MB\n",
-                      cases[i].spec, cases[i].r0, S->estimate_vertices, S->vertices, 100 * rel,
+        print_message("estimate %-28s r0 %-5g approx %-5g: %6.0f for %6zu vertices (%+.1f%%); "
+                      "memory %.1f MB for %.1f MB\n",
+                      cases[i].spec, cases[i].r0, cases[i].approx, S->estimate_vertices,
+                      S->vertices, 100 * rel,
                       S->estimate_bytes * 1e-6, (double)S->peak_bytes * 1e-6);
         assert_true(fabs(rel) <= 0.15);
         assert_true(S->estimate_bytes > 0);

@@ -8,9 +8,10 @@
  *
  *     V ~ C * integral over S of sqrt(det M_tangent(p)) / ((3 sqrt 3 / 2) h(p)^2) dA
  *
- * with h(p) = min(r0, the distortion radius, alpha lfs(p)): the sizes rule 1
- * enforces (r0; gamma0 through the rate at which the metric turns, paper 2.2's distortion
- * radius; the local feature size of paper 2.3). C corrects for Delaunay refinement
+ * with h(p) = min(r0, the distortion radius, alpha lfs(p), the approximation radius): the
+ * sizes rule 1 enforces (r0; gamma0 through the rate at which the metric turns, paper
+ * 2.2's distortion radius; the local feature size of paper 2.3; --approx through S's
+ * curvature, est_task). C corrects for Delaunay refinement
  * ending with facets smaller than the bound (their circumradii spread over (h/2, h)):
  * it is measured, see AS_ESTIMATE_FILL. Rules 2 and 3 add a few percent.
  */
@@ -177,6 +178,35 @@ static anistar_status est_task(void *arg, int32_t i, int t, anistar_context *ctx
     if (ss->alpha * lfs < h) {
         h = ss->alpha * lfs;
         bygamma = 0;
+    }
+    if (prm->approx > 0) {
+        /* design: rule 1's approximation bound (--approx delta: the distance from a
+         * facet's centroid to S). A triangle equilateral in M with circumradius h, its
+         * vertices on S, has its centroid (h^2 / 4) |tr(K M_t^-1)| off S to second order
+         * (K = diag k_i in the principal frame, M_t the tangential metric: the vertices'
+         * offsets v_i from the centroid have sum v_i v_i^T = (3/2) h^2 M_t^-1 whatever the
+         * triangle's orientation, the centroid's distance is |sum v_i^T K v_i| / 6), so
+         * the bound holds for h up to sqrt(4 delta / |tr(K M_t^-1)|) (none where the
+         * trace vanishes: a saddle whose curvatures cancel in M). Without it the estimate ignored --approx: the
+         * sphere with --approx 1e-4 made 40,022 vertices against 822 estimated, and
+         * --approx 1e-6 was not refused (307,294 vertices after 60 s) */
+        as_surface_frame fr;
+        if ((s = as_surface_frame_at(ctx, ss->surf, p, &fr)) != ANISTAR_OK) return s;
+        if (!fr.singular) {
+            double fa[3], fb[3];
+            as_metric_apply(&mf, fr.d, fa);
+            as_metric_apply(&mf, fr.d + 3, fb);
+            double aa = dot3(fa, fa), bb = dot3(fb, fb), ab = dot3(fa, fb);
+            double det = aa * bb - ab * ab;
+            double tr = det > 0 ? fabs(fr.k[0] * bb + fr.k[1] * aa) / det : 0;
+            if (tr > 0 && isfinite(tr)) {
+                double ha = sqrt(4 * prm->approx / tr);
+                if (ha < h) {
+                    h = ha;
+                    bygamma = 0;
+                }
+            }
+        }
     }
     double d = dens / (ideal * h * h);
     /* the Euclidean bounds: edges of at least hmin and at most hmax (an equilateral

@@ -335,6 +335,54 @@ static void test_loose_bound(void **state) {
                  loose.approx_error_mean, tight.vertices, tight.approx_error_mean);
 }
 
+/* The same unit sphere centred at the origin, at x = 1e7 and at x = 1e10: the same mesh up
+ * to a few percent. Far from the origin the coordinates' spacing (1.9e-9 at 1e7) exceeded
+ * the surface's tolerance (1e-12 R) and the medial balls' ray offset (1e-9 R): the balls
+ * met their own point, the feature size was 1e-9, and the sphere at 1e7 took 2,997
+ * vertices (2,319 feature insertions) against an estimate of 2.1e6; at 1e8 it was
+ * refused. */
+static void run_sphere_at(double x0, anistar_mesh_stats *S) {
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    anistar_metric *m;
+    anistar_mesher *me;
+    anistar_mesh *mesh = NULL;
+    char expr[128];
+    snprintf(expr, sizeof expr, "(x-%.17g)^2+y^2+z^2-1", x0);
+    const double c[3] = {x0, 0, 0};
+    assert_int_equal(anistar_surface_from_expression(ctx, expr, c, 1.25, &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.15), ANISTAR_OK);
+    if (anistar_mesher_run(me, &mesh) != ANISTAR_OK) fail_msg("%s", anistar_last_error(ctx));
+    anistar_mesh_get_stats(mesh, S);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
+static void test_far_from_origin(void **state) {
+    (void)state;
+    anistar_mesh_stats o, f[2];
+    run_sphere_at(0, &o);
+    run_sphere_at(1e7, &f[0]);
+    run_sphere_at(1e10, &f[1]);
+    for (int i = 0; i < 2; i++) {
+        double rv = (double)f[i].vertices / (double)o.vertices;
+        double re = f[i].estimate_vertices / o.estimate_vertices;
+        print_message("sphere at x = %g: %zu V (origin %zu), estimate %.0f (origin %.0f), "
+                      "%zu feature insertions\n",
+                      i ? 1e10 : 1e7, f[i].vertices, o.vertices, f[i].estimate_vertices,
+                      o.estimate_vertices, (size_t)f[i].insertions_feature);
+        assert_true(f[i].complete && f[i].closed_manifold && f[i].euler_characteristic == 2);
+        assert_true(rv > 0.95 && rv < 1.05);
+        assert_true(re > 0.95 && re < 1.05);
+        assert_true(f[i].insertions_feature == 0);
+    }
+}
+
 static void test_determinism_and_threads(void **state) {
     (void)state;
     job a1 = {"sphere", "shock,phi=0.3", 1.0, 2.0, 7, 0, 0, NULL, NULL, 0};
@@ -665,6 +713,7 @@ int main(void) {
         cmocka_unit_test(test_id_limit),
         cmocka_unit_test(test_approx_error_sphere),
         cmocka_unit_test(test_loose_bound),
+        cmocka_unit_test(test_far_from_origin),
         cmocka_unit_test(test_determinism_and_threads),
         cmocka_unit_test(test_batches_against_one_at_a_time),
     };

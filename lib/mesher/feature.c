@@ -48,9 +48,14 @@ static anistar_status medial_ball(anistar_context *ctx, const as_surface *surf,
     double rho = R, cosang = -1; /* the ray's crossing: opposite, 180 degrees */
     int touched = 0;
     {
+        /* the ray starts off q, past the crossing at q itself: 1e-9 R, or 64 times the
+         * surface's tolerance far from the origin (where 1e-9 R is below the coordinates'
+         * spacing: a unit sphere at x = 1e7 found its own point, medial balls of 1e-9,
+         * and 2,319 feature insertions) */
+        const double off = fmax(1e-9 * R, 64 * surf->tol);
         double a[3], b[3], x[3];
         for (int k = 0; k < 3; k++) {
-            a[k] = q[k] + 1e-9 * R * d[k];
+            a[k] = q[k] + off * d[k];
             b[k] = q[k] + 2.0 * R * d[k];
         }
         int hit = 0;

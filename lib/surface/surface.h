@@ -17,7 +17,8 @@
  *    its opposite). Principal curvatures are the eigenvalues of P (H/|grad f|) P on the
  *    tangent plane (paper 5.2.2), so they are positive where S is convex (sphere of
  *    radius r: +1/r) and of opposite signs at saddle points.
- *  - Lengths are judged against tol = AS_SURFACE_REL_TOL * radius (roots, projections).
+ *  - Lengths are judged against tol = AS_SURFACE_REL_TOL * radius (roots, projections),
+ *    or AS_SURFACE_ULP_TOL * (|center| + radius) when that is larger (far from 0).
  *  - A surface is immutable after creation. Every operation takes it const and keeps its
  *    state on the caller's stack, so one surface may be queried from several threads at
  *    once, each thread passing its own context (ctx receives error messages only; it may
@@ -35,8 +36,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* Relative tolerance of roots and projections: |x - x*| <= 1e-12 * bounding radius. */
+/* Relative tolerance of roots and projections: |x - x*| <= 1e-12 * bounding radius, and
+ * at least AS_SURFACE_ULP_TOL times the coordinates' magnitude (8 ulps: a surface far
+ * from the origin cannot be resolved below its coordinates' spacing). */
 #define AS_SURFACE_REL_TOL 1e-12
+#define AS_SURFACE_ULP_TOL (8 * DBL_EPSILON)
 
 typedef struct anistar_surface as_surface;
 
@@ -101,7 +105,7 @@ struct anistar_surface {
     anistar_context *ctx; /* the creating context: its allocator owns the object */
     double center[3];     /* bounding sphere */
     double radius;
-    double tol;           /* AS_SURFACE_REL_TOL * radius */
+    double tol;           /* AS_SURFACE_REL_TOL * radius, or 8 ulps of the coordinates */
     /* The sampler's analysis of S (kinds sampled through f): made by the first sample and
      * kept, so that the metric's defaults and the mesher's samples share it (as_surface_sample).
      * A cache: filled through a const surface, by the one thread that uses the surface

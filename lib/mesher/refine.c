@@ -1952,19 +1952,24 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             if (!found) continue; /* certification names the star if it stays open */
             if (prm->part && !prm->part->accept(prm->part->user, ss, rule, v, NULL, p, 1))
                 continue;
-            /* design: on a triangle mesh the topology rule stops at the surface's
-             * resolution too (hmin, as the other rules): a point nearer than hmin to a
-             * site is not inserted, and certification judges the star. A polyhedron is
-             * not smooth (lfs is 0 at every edge with a dihedral angle: the creases and
-             * corners of a CAD mesh, the facets of a scan refined below its own edges),
-             * and there the restricted Delaunay triangulation need not become a disk at
-             * any sampling: the farthest crossing of a star's cell lies nearer and nearer
-             * the crease, and the rule spiralled into it (the lever, the hinge and the
-             * elephant with the default curvature reached 1e-15 and the 1e-9 trap).
-             * Implicit and image surfaces are C2: the rule terminates there (its points
-             * are a fraction of lfs > 0 from the sites), and the brain at r0 6 needs it
-             * below its hmin to be certified */
-            if (as_surface_is_mesh(ss->surf)) {
+            /* design: on a triangle mesh and on an implicit function the topology rule
+             * stops at the surface's resolution too (hmin, as the other rules): a point
+             * nearer than hmin to a site is not inserted, and certification judges the
+             * star. A polyhedron is not smooth (lfs is 0 at every edge with a dihedral
+             * angle: the creases and corners of a CAD mesh, the facets of a scan refined
+             * below its own edges), and there the restricted Delaunay triangulation need
+             * not become a disk at any sampling: the farthest crossing of a star's cell
+             * lies nearer and nearer the crease, and the rule spiralled into it (the
+             * lever, the hinge and the elephant with the default curvature reached 1e-15
+             * and the 1e-9 trap). An implicit function need not be smooth either: the
+             * max, min or abs of smooth ones (a gyroid clipped by a ball, the usual CAD
+             * construction) has creases where lfs is 0, and the rule spiralled into the
+             * gyroid's crease with the sphere the same way (nine sites within 1e-15 of one
+             * point, then the trap: `--metric curvature,grad=1.3`, session 21). An image is
+             * a cubic B-spline, C2: the rule terminates there (its points are a fraction
+             * of lfs > 0 from the sites), and the brain at r0 6 needs it below its hmin
+             * (two voxels) to be certified */
+            if (!as_surface_is_image(ss->surf)) {
                 int32_t near;
                 double dn = nearest_site(ss, p, &near);
                 if (ss->hmin > 0 && dn < ss->hmin) {

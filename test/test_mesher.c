@@ -297,6 +297,24 @@ static void test_approx_error_sphere(void **state) {
     anistar_context_free(ctx);
 }
 
+/* The statistics of surface s meshed with the euclidean metric at r0 0.15; frees s and
+ * its context ctx. */
+static void euclidean_stats(anistar_context *ctx, anistar_surface *s, anistar_mesh_stats *S) {
+    anistar_metric *m;
+    anistar_mesher *me;
+    anistar_mesh *mesh = NULL;
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.15), ANISTAR_OK);
+    if (anistar_mesher_run(me, &mesh) != ANISTAR_OK) fail_msg("%s", anistar_last_error(ctx));
+    anistar_mesh_get_stats(mesh, S);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    anistar_context_free(ctx);
+}
+
 /* One sphere, bound=1.25 and bound=1e4: the automatic hmin follows the surface's size,
  * not a loose bounding radius (with 1e-4 of the bound it was 1, and the sphere was
  * "certified" with 9 vertices and a mean error of a quarter of its radius). The loose run
@@ -304,20 +322,8 @@ static void test_approx_error_sphere(void **state) {
 static void run_sphere_bound(const char *spec, anistar_mesh_stats *S) {
     anistar_context *ctx = anistar_context_new(NULL);
     anistar_surface *s;
-    anistar_metric *m;
-    anistar_mesher *me;
-    anistar_mesh *mesh = NULL;
     assert_int_equal(anistar_surface_builtin(ctx, spec, &s), ANISTAR_OK);
-    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.15), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
-    anistar_mesh_get_stats(mesh, S);
-    anistar_mesh_free(mesh);
-    anistar_mesher_free(me);
-    anistar_metric_free(m);
-    anistar_surface_free(s);
-    anistar_context_free(ctx);
+    euclidean_stats(ctx, s, S);
 }
 
 static void test_loose_bound(void **state) {
@@ -344,23 +350,11 @@ static void test_loose_bound(void **state) {
 static void run_sphere_at(double x0, anistar_mesh_stats *S) {
     anistar_context *ctx = anistar_context_new(NULL);
     anistar_surface *s;
-    anistar_metric *m;
-    anistar_mesher *me;
-    anistar_mesh *mesh = NULL;
     char expr[128];
     snprintf(expr, sizeof expr, "(x-%.17g)^2+y^2+z^2-1", x0);
     const double c[3] = {x0, 0, 0};
     assert_int_equal(anistar_surface_from_expression(ctx, expr, c, 1.25, &s), ANISTAR_OK);
-    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 0.15), ANISTAR_OK);
-    if (anistar_mesher_run(me, &mesh) != ANISTAR_OK) fail_msg("%s", anistar_last_error(ctx));
-    anistar_mesh_get_stats(mesh, S);
-    anistar_mesh_free(mesh);
-    anistar_mesher_free(me);
-    anistar_metric_free(m);
-    anistar_surface_free(s);
-    anistar_context_free(ctx);
+    euclidean_stats(ctx, s, S);
 }
 
 static void test_far_from_origin(void **state) {

@@ -12,9 +12,13 @@
  *         common case costs one determinant, a few abs/add/mul and one comparison;
  *      A. Shewchuk's stage A: the same determinant against errA * permanent;
  *      B. the exact determinant of the rounded differences (expansions), against
- *         errB * permanent; if the differences were exact it is the answer;
+ *         errB * permanent; if the differences were exact it is the answer (insphere:
+ *         first in double-double, B', which bounds B's value within 128u^2 * permanent
+ *         and settles B's answers; B's expansions then run only when the differences
+ *         were exact and B' is within its error of 0: see as_isp_adapt);
  *      C. B's estimate plus the first-order terms of the differences' rounding errors
- *         (evaluated in floating point), against errC * permanent + resulterr * |det|;
+ *         (evaluated in floating point), against errC * permanent + resulterr * |det|
+ *         (insphere: B' as the estimate, the bound widened by B''s 128u^2 * permanent);
  *      D. the exact determinant of the raw coordinates (the _exact variant).
  *    The constants are expressions of DBL_EPSILON, folded at compile time (no init call,
  *    no globals). Stage C's correction is our own formula; its bound follows the usual
@@ -478,11 +482,15 @@ static int as_det3_of(double pz, double qz, double rz, const double *qr, const d
  * 128u^2 covers it with room. When |v| - AS_ISP_ERRDD perm clears B's own bound
  * (ERRB perm) with a relative 8u to spare (for the roundings of |v| and of B's value),
  * B would have returned a value of v's sign; when the differences were exact and
- * |v| > AS_ISP_ERRDD perm, B's value has v's sign and is the answer. Otherwise B runs as
- * before. Only signs are promised (the magnitude is an approximation, anistar.h), and
- * they are B's: the mesher's outputs do not change. No underflow in the valid input
- * range: every value is a multiple of 2^-925 and each error term stays above 2^-1074
- * relative to perm's scale. */
+ * |v| > AS_ISP_ERRDD perm, B's value has v's sign and is the answer. Stage C starts from
+ * v instead of B's value, its bound widened by AS_ISP_ERRDD perm (71u^2 + 128u^2 instead
+ * of 71u^2, plus the rounding term as before): on two spheres 1e-4 apart 2.27 million of
+ * 5.95 million calls went to C, each paying B's expansions first. B's expansions now run
+ * only for exact differences whose v is within its error of 0 (exactly cospherical
+ * points on a grid, say), where B's value is the answer. Only signs are promised (the
+ * magnitude is an approximation, anistar.h), and they are the exact ones: the mesher's
+ * outputs do not change. No underflow in the valid input range: every value is a
+ * multiple of 2^-925 and each error term stays above 2^-1074 relative to perm's scale. */
 #define AS_ISP_ERRDD (128.0 * AS_EPS * AS_EPS)
 
 static inline as_dd isp_minor_dd(double p, double q, double r, double s) {
@@ -492,16 +500,6 @@ static inline as_dd isp_minor_dd(double p, double q, double r, double s) {
 static inline as_dd isp_lift_dd(double x, double y, double z) {
     return as_dd_add(as_dd_add(as_dd_two_prod(x, x), as_dd_two_prod(y, y)),
                      as_dd_two_prod(z, z));
-}
-
-/* Whether every difference p - e of the five points is exact in floating point. */
-static int isp_exact_differences(const double *a, const double *b, const double *c,
-                                 const double *d, const double *e) {
-    const double *q[4] = {a, b, c, d};
-    for (int k = 0; k < 4; k++)
-        for (int i = 0; i < 3; i++)
-            if (as_two_diff_tail(q[k][i], e[i], q[k][i] - e[i]) != 0.0) return 0;
-    return 1;
 }
 
 static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const double *c,
@@ -539,6 +537,9 @@ static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const d
     if (fabs(det) > err) return det;
 
     /* Stage B': B's determinant in double-double; returned when it settles what B would. */
+    const double errdd = AS_ISP_ERRDD * perm;
+    as_dd v;
+    double mag;
     {
         as_dd xab = isp_minor_dd(aex, bey, bex, aey), xbc = isp_minor_dd(bex, cey, cex, bey);
         as_dd xcd = isp_minor_dd(cex, dey, dex, cey), xda = isp_minor_dd(dex, aey, aex, dey);
@@ -553,61 +554,16 @@ static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const d
                                as_dd_mul_d(xda, bez));
         as_dd la = isp_lift_dd(aex, aey, aez), lb = isp_lift_dd(bex, bey, bez);
         as_dd lc = isp_lift_dd(cex, cey, cez), ld = isp_lift_dd(dex, dey, dez);
-        as_dd v = as_dd_add(as_dd_sub(as_dd_mul(ld, yabc), as_dd_mul(lc, ydab)),
-                            as_dd_sub(as_dd_mul(lb, ycda), as_dd_mul(la, ybcd)));
-        double errdd = AS_ISP_ERRDD * perm, errb = AS_ISP_ERRB * perm;
-        double mag = fabs(v.hi) - fabs(v.lo); /* <= |v| (1 + u) */
-        if (mag > (errb + errdd) * (1.0 + 8.0 * AS_EPS)) {
+        v = as_dd_add(as_dd_sub(as_dd_mul(ld, yabc), as_dd_mul(lc, ydab)),
+                      as_dd_sub(as_dd_mul(lb, ycda), as_dd_mul(la, ybcd)));
+        mag = fabs(v.hi) - fabs(v.lo); /* <= |v| (1 + u) */
+        if (mag > (AS_ISP_ERRB * perm + errdd) * (1.0 + 8.0 * AS_EPS)) {
             AS_COUNT(insphere_stage[1]);
             return v.hi;
         }
-        if (mag > errdd * (1.0 + 8.0 * AS_EPS) && isp_exact_differences(a, b, c, d, e)) {
-            AS_COUNT(insphere_stage[1]); /* B's answer, as below */
-            return v.hi;
-        }
     }
 
-    /* Stage B: exact determinant of the rounded differences. */
-    {
-        double xab[4], xbc[4], xcd[4], xda[4], xac[4], xbd[4];
-        double xabc[24], xbcd[24], xcda[24], xdab[24];
-        double ta[288], tb[288], tc[288], td[288], s1[576], s2[576], fin[1152];
-        as_minor2(aex, aey, bex, bey, xab);
-        as_minor2(bex, bey, cex, cey, xbc);
-        as_minor2(cex, cey, dex, dey, xcd);
-        as_minor2(dex, dey, aex, aey, xda);
-        as_minor2(aex, aey, cex, cey, xac);
-        as_minor2(bex, bey, dex, dey, xbd);
-        /* abc = aez bc - bez ac + cez ab; bcd = bez cd - cez bd + dez bc;
-         * cda = cez da + dez ac + aez cd = cez da - dez (-ac) + aez cd;
-         * dab = dez ab + aez bd + bez da. as_det3_of(p, q, r, .) = p X - q Y + r Z. */
-        int nabc = as_det3_of(aez, bez, cez, xbc, xac, xab, xabc);
-        int nbcd = as_det3_of(bez, cez, dez, xcd, xbd, xbc, xbcd);
-        int ncda = as_det3_of(cez, -dez, aez, xda, xac, xcd, xcda);
-        int ndab = as_det3_of(dez, -aez, bez, xab, xbd, xda, xdab);
-        const double ua[3] = {aex, aey, aez}, ub[3] = {bex, bey, bez};
-        const double uc[3] = {cex, cey, cez}, ud[3] = {dex, dey, dez};
-        double h[6];
-        int lh = as_lift_exact(ua, h);
-        int la = as_mul_lift(nbcd, xbcd, lh, h, -1.0, ta);
-        lh = as_lift_exact(ub, h);
-        int lb = as_mul_lift(ncda, xcda, lh, h, 1.0, tb);
-        lh = as_lift_exact(uc, h);
-        int lc = as_mul_lift(ndab, xdab, lh, h, -1.0, tc);
-        lh = as_lift_exact(ud, h);
-        int ld = as_mul_lift(nabc, xabc, lh, h, 1.0, td);
-        int l1 = as_exp_sum(ld, td, lc, tc, s1);
-        int l2 = as_exp_sum(lb, tb, la, ta, s2);
-        int lf = as_exp_sum(l1, s1, l2, s2, fin);
-        det = as_exp_value(lf, fin);
-    }
-    err = AS_ISP_ERRB * perm;
-    if (det >= err || -det >= err) {
-        AS_COUNT(insphere_stage[1]);
-        return det;
-    }
-
-    /* Stage C: first-order terms of the differences' rounding errors. */
+    /* The differences' rounding errors (stage C's tails). */
     double aext = as_two_diff_tail(a[0], e[0], aex);
     double bext = as_two_diff_tail(b[0], e[0], bex);
     double cext = as_two_diff_tail(c[0], e[0], cex);
@@ -623,10 +579,51 @@ static AS_NOINLINE double as_isp_adapt(const double *a, const double *b, const d
     if (aext == 0.0 && bext == 0.0 && cext == 0.0 && dext == 0.0 && aeyt == 0.0 &&
         beyt == 0.0 && ceyt == 0.0 && deyt == 0.0 && aezt == 0.0 && bezt == 0.0 &&
         cezt == 0.0 && dezt == 0.0) {
-        AS_COUNT(insphere_stage[1]); /* the differences were exact: B is the answer */
+        /* the differences were exact: B's determinant is the answer, its sign v's when v
+         * is farther from 0 than its error, else B's value itself (which may be 0) */
+        AS_COUNT(insphere_stage[1]);
+        if (mag > errdd * (1.0 + 8.0 * AS_EPS)) return v.hi;
+        /* Stage B: exact determinant of the rounded differences. */
+        {
+            double xab[4], xbc[4], xcd[4], xda[4], xac[4], xbd[4];
+            double xabc[24], xbcd[24], xcda[24], xdab[24];
+            double ta[288], tb[288], tc[288], td[288], s1[576], s2[576], fin[1152];
+            as_minor2(aex, aey, bex, bey, xab);
+            as_minor2(bex, bey, cex, cey, xbc);
+            as_minor2(cex, cey, dex, dey, xcd);
+            as_minor2(dex, dey, aex, aey, xda);
+            as_minor2(aex, aey, cex, cey, xac);
+            as_minor2(bex, bey, dex, dey, xbd);
+            /* abc = aez bc - bez ac + cez ab; bcd = bez cd - cez bd + dez bc;
+             * cda = cez da + dez ac + aez cd = cez da - dez (-ac) + aez cd;
+             * dab = dez ab + aez bd + bez da. as_det3_of(p, q, r, .) = p X - q Y + r Z. */
+            int nabc = as_det3_of(aez, bez, cez, xbc, xac, xab, xabc);
+            int nbcd = as_det3_of(bez, cez, dez, xcd, xbd, xbc, xbcd);
+            int ncda = as_det3_of(cez, -dez, aez, xda, xac, xcd, xcda);
+            int ndab = as_det3_of(dez, -aez, bez, xab, xbd, xda, xdab);
+            const double ua[3] = {aex, aey, aez}, ub[3] = {bex, bey, bez};
+            const double uc[3] = {cex, cey, cez}, ud[3] = {dex, dey, dez};
+            double h[6];
+            int lh = as_lift_exact(ua, h);
+            int la = as_mul_lift(nbcd, xbcd, lh, h, -1.0, ta);
+            lh = as_lift_exact(ub, h);
+            int lb = as_mul_lift(ncda, xcda, lh, h, 1.0, tb);
+            lh = as_lift_exact(uc, h);
+            int lc = as_mul_lift(ndab, xdab, lh, h, -1.0, tc);
+            lh = as_lift_exact(ud, h);
+            int ld = as_mul_lift(nabc, xabc, lh, h, 1.0, td);
+            int l1 = as_exp_sum(ld, td, lc, tc, s1);
+            int l2 = as_exp_sum(lb, tb, la, ta, s2);
+            int lf = as_exp_sum(l1, s1, l2, s2, fin);
+            det = as_exp_value(lf, fin);
+        }
         return det;
     }
-    err = AS_ISP_ERRC * perm + AS_RESULT_ERR * fabs(det);
+
+    /* Stage C: B's value (from B', within errdd of it) plus the first-order terms of the
+     * differences' rounding errors. */
+    det = v.hi;
+    err = AS_ISP_ERRC * perm + errdd + AS_RESULT_ERR * fabs(det);
     /* Differentials of the 2x2 minors: d(pq) = (pxt qy + px qyt) - (qxt py + qx pyt). */
     double dab_ = (aext * bey + aex * beyt) - (bext * aey + bex * aeyt);
     double dbc_ = (bext * cey + bex * ceyt) - (cext * bey + cex * beyt);

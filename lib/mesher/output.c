@@ -654,8 +654,9 @@ anistar_status as_mesher_certify(as_starset *ss, anistar_mesh *m, int *ok, int *
                     "mesher: uncertified: the star of site %d at (%.17g, %.17g, %.17g) is not "
                     "one closed fan (%d facets) and the topology rule found no point to insert "
                     "farther than hmin %g from the other sites (S is not smooth there, e.g. a "
-                    "sharp crease or corner of the input mesh, or the metric is too distorted "
-                    "at that scale: lower hmin, grade the metric with grad=, or lower r0)",
+                    "sharp crease or corner, or two parts of S come closer than about hmin, "
+                    "or the metric is too distorted at that scale: lower hmin, grade the "
+                    "metric with grad=, or lower r0)",
                     (int)v, x[0], x[1], x[2], (int)st->nrf, ss->hmin);
             return ANISTAR_OK;
         }

@@ -187,9 +187,9 @@ static anistar_status est_task(void *arg, int32_t i, int t, anistar_context *ctx
          * offsets v_i from the centroid have sum v_i v_i^T = (3/2) h^2 M_t^-1 whatever the
          * triangle's orientation, the centroid's distance is |sum v_i^T K v_i| / 6), so
          * the bound holds for h up to sqrt(4 delta / |tr(K M_t^-1)|) (none where the
-         * trace vanishes: a saddle whose curvatures cancel in M). Without it the estimate ignored --approx: the
-         * sphere with --approx 1e-4 made 40,022 vertices against 822 estimated, and
-         * --approx 1e-6 was not refused (307,294 vertices after 60 s) */
+         * trace vanishes: a saddle whose curvatures cancel in M). Without it the estimate
+         * ignored --approx: the sphere with --approx 1e-4 made 40,022 vertices against 822
+         * estimated, and --approx 1e-6 was not refused (307,294 vertices after 60 s) */
         as_surface_frame fr;
         if ((s = as_surface_frame_at(ctx, ss->surf, p, &fr)) != ANISTAR_OK) return s;
         if (!fr.singular) {

@@ -33,6 +33,7 @@
 #include "geom/bvh.h"
 #include "geom/kdtree.h"
 
+#include <float.h>
 #include <stddef.h>
 #include <stdint.h>
 

@@ -354,18 +354,26 @@ int as_otsu_pick(const as_otsu_hist *h, double *iso) {
     }
     if (!(n > 0)) return -1;
     double n0 = 0, m0 = 0, best = -1;
-    int at = AS_OTSU_BINS / 2 - 1;
+    int at = AS_OTSU_BINS / 2 - 1, last = at;
     for (int k = 0; k < AS_OTSU_BINS - 1; k++) {
         n0 += (double)h->count[k];
         m0 += (double)h->count[k] * (k + 0.5);
         double n1 = n - n0;
         if (n0 <= 0 || n1 <= 0) continue;
         double d = m0 / n0 - (m - m0) / n1, var = n0 * n1 * d * d;
-        if (var > best) { /* the first maximum: ties go to the lower split */
+        if (var > best) { /* the first maximum */
             best = var;
-            at = k;
+            at = last = k;
+        } else if (var == best && k == last + 1) {
+            last = k; /* the same split, bit for bit: the bins between are empty */
         }
     }
+    /* design: the middle of the maximum's run of empty bins. The splits between two
+     * occupied bins with nothing between them all score the same, and the first of them
+     * put the threshold one bin above the lower value: 0.39 for an image of 0s and 100s,
+     * where the interpolating B-spline's undershoot near the edges crosses it (208
+     * spurious components meshing a ball with the default iso; session 21's sweep) */
+    at = (at + last) / 2;
     *iso = h->lo + w * (double)(at + 1) / AS_OTSU_BINS;
     return 0;
 }

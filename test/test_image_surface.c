@@ -559,6 +559,16 @@ static void test_otsu(void **state) {
     exact_otsu(count, 257, &best, (int)iso - 1, &at);
     assert_true(at >= best * (1 - 1e-12));
     assert_true(iso > 60 && iso < 170); /* between the two classes */
+    /* a binary mask (0s and 100s): every split between the two values scores the same;
+     * the threshold is the middle of that run, 50 (the first split, one bin above 0, put
+     * it where the interpolating B-spline's undershoot crosses: 208 components for a
+     * ball), and so for 0s and 1s, 0.5 */
+    for (size_t i = 0; i < n; i++) vox[i] = (i / 7) % 3 == 0 ? 100 : 0;
+    assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_OK);
+    assert_true(fabs(iso - 50) <= 100.0 / 256);
+    for (size_t i = 0; i < n; i++) vox[i] = vox[i] > 0 ? 1 : 0;
+    assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_OK);
+    assert_true(fabs(iso - 0.5) <= 1.0 / 256);
     /* a constant image has no threshold; bad arguments */
     for (size_t i = 0; i < n; i++) vox[i] = 7;
     assert_int_equal(anistar_image_otsu(ctx, vox, dims, &iso), ANISTAR_ENOSURFACE);

@@ -47,7 +47,8 @@ int as_pool_threads(const as_pool *p);
  * accounting). */
 anistar_context *as_pool_context(as_pool *p, int t);
 
-/* Run fn(arg, i, thread, ctx_thread) for i in [0, n) (see above). p NULL or n < 2: on the
+/* Run fn(arg, i, thread, ctx_thread) for i in [0, n) (see above); p not NULL (a caller
+ * without a pool runs its tasks itself, on its own context). One thread or n < 2: on the
  * caller's thread, in order. ANISTAR_OK, or the status of the lowest failing task. */
 anistar_status as_pool_run(as_pool *p, int32_t n, as_pool_fn fn, void *arg);
 

@@ -95,6 +95,26 @@ static int output_facet(const as_starset *ss, int32_t v, const as_rfacet *f) {
     return e && as_starset_consistent(ss, e->key, e->mask);
 }
 
+/* Run nchunks tasks of fn on ss's pool, or in order on ctx without one. */
+static anistar_status run_chunks(const as_starset *ss, anistar_context *ctx, int32_t nchunks,
+                                 as_pool_fn fn, void *arg) {
+    if (ss->pool) return as_pool_run(ss->pool, nchunks, fn, arg);
+    anistar_status s = ANISTAR_OK;
+    for (int32_t c = 0; c < nchunks && s == ANISTAR_OK; c++) s = fn(arg, c, 0, ctx);
+    return s;
+}
+
+/* Add facet o's approximation samples to the statistics (largest distance, and the
+ * area-weighted sums of the mean), in the caller's facet order. */
+static void add_errors(const as_ofacet *o, anistar_mesh_stats *S, double *err_sum,
+                       double *area_sum) {
+    if (o->emax > S->approx_error_max) S->approx_error_max = o->emax;
+    if (o->ns) {
+        *err_sum += o->area * o->esum / o->ns;
+        *area_sum += o->area;
+    }
+}
+
 static anistar_status ofacet_one(const as_starset *ss, anistar_context *ctx, int errors,
                                  as_ofacet *o) {
     const as_rfacet *f = o->f;
@@ -212,14 +232,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
         }
         as_ofacets O = {ss, of, nof, errors};
         int32_t nchunks = (int32_t)((nof + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK);
-        if (ss->pool && nchunks >= 2) {
-            s = as_pool_run(ss->pool, nchunks, ofacet_task, &O);
-        } else {
-            s = ANISTAR_OK;
-            for (int32_t c = 0; c < nchunks && s == ANISTAR_OK; c++)
-                s = ofacet_task(&O, c, 0, ctx);
-        }
-        if (s != ANISTAR_OK) goto fail;
+        if ((s = run_chunks(ss, ctx, nchunks, ofacet_task, &O)) != ANISTAR_OK) goto fail;
         for (size_t i = 0; i < nof; i++) {
             const as_ofacet *o = &of[i];
             const as_rfacet *f = o->f;
@@ -241,11 +254,7 @@ anistar_status as_mesher_output(as_starset *ss, const as_mesher_params *prm,
                 if (o->r[j] > S->r_max) S->r_max = o->r[j];
                 if (rho > prm->rho0 || o->r[j] >= prm->r0) beyond = 1;
             }
-            if (o->emax > S->approx_error_max) S->approx_error_max = o->emax;
-            if (o->ns) {
-                err_sum += o->area * o->esum / o->ns;
-                area_sum += o->area;
-            }
+            add_errors(o, S, &err_sum, &area_sum);
             if (o->g > S->gamma_max) S->gamma_max = o->g;
             if (o->g >= prm->gamma0) beyond = 1;
             if (beyond && as_facet_below_hmin(ss, f)) S->facets_below_hmin++;
@@ -369,21 +378,10 @@ anistar_status as_mesher_output_errors(as_starset *ss, anistar_mesh *m) {
     for (size_t lo = 0; lo < m->tm.nt && s == ANISTAR_OK; lo += AS_OUTPUT_WINDOW) {
         size_t n = m->tm.nt - lo < AS_OUTPUT_WINDOW ? m->tm.nt - lo : AS_OUTPUT_WINDOW;
         as_oerrs E = {ss, m, of, lo, n};
-        int32_t nchunks = (int32_t)((n + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK);
-        if (ss->pool && nchunks >= 2) {
-            s = as_pool_run(ss->pool, nchunks, oerr_task, &E);
-        } else {
-            for (int32_t c = 0; c < nchunks && s == ANISTAR_OK; c++)
-                s = oerr_task(&E, c, 0, ctx);
-        }
-        for (size_t i = 0; i < n && s == ANISTAR_OK; i++) {
-            const as_ofacet *o = &of[i];
-            if (o->emax > S->approx_error_max) S->approx_error_max = o->emax;
-            if (o->ns) {
-                err_sum += o->area * o->esum / o->ns;
-                area_sum += o->area;
-            }
-        }
+        s = run_chunks(ss, ctx, (int32_t)((n + AS_OUTPUT_CHUNK - 1) / AS_OUTPUT_CHUNK),
+                       oerr_task, &E);
+        for (size_t i = 0; i < n && s == ANISTAR_OK; i++)
+            add_errors(&of[i], S, &err_sum, &area_sum);
     }
     if (s == ANISTAR_OK) S->approx_error_mean = area_sum > 0 ? err_sum / area_sum : 0;
     as_free(ctx, of, AS_OUTPUT_WINDOW * sizeof *of);

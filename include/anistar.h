@@ -527,7 +527,8 @@ typedef enum anistar_param {
                                    hard limit of the star set, 2147482623 sites
                                    (2^31 - 1025: 32-bit global ids) (default 1000000) */
     ANISTAR_PARAM_MAX_SECONDS,  /* stop (ANISTAR_INCOMPLETE) after this many seconds of
-                                   refinement; >= 0, 0 = no limit (default) */
+                                   refinement, its final checks included (they test it
+                                   between stars); >= 0, 0 = no limit (default) */
     ANISTAR_PARAM_SEED,         /* seed of Pick_valid's random points; integer in
                                    [0, 2^53] (default 0) */
     ANISTAR_PARAM_PICK_TRIES,   /* Pick_valid tries before the center is taken; integer

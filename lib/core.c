@@ -8,6 +8,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 /* ---- status ----------------------------------------------------------------------- */
 
@@ -75,4 +76,23 @@ int as_grow(anistar_context *ctx, void **p, size_t *cap, size_t need, size_t ele
     *p = q;
     *cap = ncap;
     return 0;
+}
+
+/* ---- time ------------------------------------------------------------------------- */
+
+double as_now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int as_halt_due(as_halt *h) {
+    if (atomic_load_explicit(&h->halted, memory_order_relaxed)) return 1;
+    int why = AS_HALT_NONE;
+    if (h->stop && atomic_load_explicit(h->stop, memory_order_relaxed)) why = AS_HALT_STOP;
+    else if (h->deadline > 0 && as_now_seconds() > h->deadline) why = AS_HALT_TIME;
+    if (why == AS_HALT_NONE) return 0;
+    int none = AS_HALT_NONE; /* the first reason found stays */
+    atomic_compare_exchange_strong(&h->halted, &none, why);
+    return 1;
 }

@@ -127,4 +127,24 @@ typedef int32_t as_gid;
  * geometric growth. Returns 0 on success, -1 on failure (then *p and *cap unchanged). */
 int as_grow(anistar_context *ctx, void **p, size_t *cap, size_t need, size_t elem);
 
+/* Seconds on the monotonic clock (CLOCK_MONOTONIC): for time limits and timings. */
+double as_now_seconds(void);
+
+/*
+ * A halt condition that long passes test between their items (the zone check of the
+ * final checks takes tens of seconds on a large run): the run's deadline and the
+ * caller's stop flag. as_halt_due may be called from any thread; the first call that
+ * finds the condition due records why (AS_HALT_TIME or AS_HALT_STOP) in halted, and every
+ * call after it returns 1.
+ */
+enum { AS_HALT_NONE = 0, AS_HALT_TIME, AS_HALT_STOP };
+typedef struct as_halt {
+    double deadline;  /* as_now_seconds() after which the pass stops; 0: none */
+    atomic_int *stop; /* nonzero: stop; NULL: no flag */
+    atomic_int halted;
+} as_halt;
+
+/* 1 when h (not NULL) is due: halted already, the stop flag set, or the deadline past. */
+int as_halt_due(as_halt *h);
+
 #endif /* ANISTAR_CORE_H */

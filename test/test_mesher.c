@@ -21,6 +21,7 @@
 #include "io/meshio.h"
 #include "mesher/mesher.h"
 #include "mesher/star.h"
+#include "mesher/starset.h"
 #include "surface/field.h"
 #include "surface/surface.h"
 
@@ -692,11 +693,89 @@ static void test_cancel_and_write(void **state) {
     anistar_context_free(ctx);
 }
 
+/* The run's limits hold in the final checks too (issue 12's contract): a run whose
+ * refinement has nothing to do (a sphere, r0 above its size: the initial points are the
+ * mesh) goes straight to the final checks; with max_seconds already past when they
+ * start it ends INCOMPLETE at max_seconds with its consistent facets, and without the
+ * limit it is certified. The zone check itself tests the halt before each star: due, it
+ * checks no star and opens none. */
+static void test_limits_in_final_checks(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    anistar_surface *s;
+    anistar_metric *m;
+    anistar_mesher *me;
+    anistar_mesh *mesh;
+    assert_int_equal(anistar_surface_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 10), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_THREADS, 1), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+    anistar_mesh_stats S;
+    anistar_mesh_get_stats(mesh, &S);
+    assert_int_equal(S.stop_reason, ANISTAR_STOP_DONE);
+    size_t nt = anistar_mesh_triangle_count(mesh);
+    assert_true(nt > 0);
+    anistar_mesh_free(mesh);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_MAX_SECONDS, 1e-9), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_INCOMPLETE);
+    assert_non_null(strstr(anistar_last_error(ctx), "during the final checks"));
+    anistar_mesh_get_stats(mesh, &S);
+    assert_int_equal(S.stop_reason, ANISTAR_STOP_MAX_SECONDS);
+    assert_int_equal(S.complete, 0);
+    assert_int_equal(S.inconsistent_facets, 0);
+    assert_int_equal(anistar_mesh_triangle_count(mesh), nt);
+    anistar_mesh_free(mesh);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+
+    /* the zone check on a finished star set: halted, it leaves every star unverified */
+    as_surface *is;
+    as_field *f;
+    assert_int_equal(as_implicit_builtin(ctx, "sphere", &is), ANISTAR_OK);
+    assert_int_equal(as_field_from_spec(ctx, is, "euclidean", &f), ANISTAR_OK);
+    as_mesher_params p;
+    as_mesher_params_default(&p);
+    p.r0 = 0.3;
+    as_starset *ss;
+    assert_int_equal(as_mesher_run_keep(ctx, is, f, &p, NULL, &mesh, &ss), ANISTAR_OK);
+    for (int why = AS_HALT_TIME; why <= AS_HALT_STOP; why++) {
+        atomic_int stop;
+        atomic_init(&stop, why == AS_HALT_STOP);
+        as_halt h = {why == AS_HALT_TIME ? as_now_seconds() - 1 : 0, &stop, AS_HALT_NONE};
+        size_t opened = 1;
+        assert_int_equal(as_starset_verify_zones(ss, NULL, NULL, &h, &opened), ANISTAR_OK);
+        assert_int_equal(opened, 0);
+        assert_int_equal(atomic_load(&h.halted), why);
+        for (int32_t v = ss->first_site; v < ss->n; v++)
+            assert_true(!ss->stars[v] || ss->stars[v]->vz_reach == 0);
+    }
+    /* not halted, the same call checks the stars on the ball zone */
+    atomic_int stop;
+    atomic_init(&stop, 0);
+    as_halt h = {as_now_seconds() + 3600, &stop, AS_HALT_NONE};
+    size_t opened = 0, checked = 0;
+    assert_int_equal(as_starset_verify_zones(ss, NULL, NULL, &h, &opened), ANISTAR_OK);
+    assert_int_equal(atomic_load(&h.halted), AS_HALT_NONE);
+    for (int32_t v = ss->first_site; v < ss->n; v++)
+        checked += ss->stars[v] && ss->stars[v]->vz_reach > 0;
+    assert_true(checked > 0);
+    as_starset_destroy(ss);
+    free(ss);
+    as_mesh_free(mesh);
+    as_field_free(f);
+    as_surface_free(is);
+    anistar_context_free(ctx);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_bad_parameters),
         cmocka_unit_test(test_bad_metric),
         cmocka_unit_test(test_cancel_and_write),
+        cmocka_unit_test(test_limits_in_final_checks),
         cmocka_unit_test(test_sphere_uniform),
         cmocka_unit_test(test_sphere_shock),
         cmocka_unit_test(test_ellipsoid_curvature),

@@ -12,12 +12,6 @@
 #include "mesher/refine.h"
 #include "mesher/starmove.h"
 
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* One candidate site of a pass. */
 typedef struct opt_item {
     double key; /* d_v(v, b_v) */
@@ -220,7 +214,7 @@ static anistar_status optimize_site(as_starset *ss, const as_mesher_params *prm,
 anistar_status as_optimize_starset(as_starset *ss, const as_mesher_params *prm,
                                    const atomic_int *stop, as_optimize_counters *cnt) {
     anistar_context *ctx = ss->ctx;
-    double t0 = now_seconds();
+    double t0 = as_now_seconds();
     memset(cnt, 0, sizeof *cnt);
     if (ss->ninc != 0 || ss->n <= ss->first_site) return ANISTAR_OK;
     size_t n = (size_t)ss->n;
@@ -285,7 +279,7 @@ done:
     as_starmove_free(ctx, &mv);
     as_free(ctx, dirty, n * sizeof *dirty);
     as_free(ctx, items, n * sizeof *items);
-    cnt->seconds = now_seconds() - t0;
+    cnt->seconds = as_now_seconds() - t0;
     return s;
 }
 

@@ -24,12 +24,6 @@ static double cpu_now(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static double wall_now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* ---- the split ------------------------------------------------------------------------ */
 
 /* A node of the bisection: leaf part >= 0, or a cut (axis, value) with children. */
@@ -672,7 +666,7 @@ anistar_status as_partition_run(anistar_context *ctx, const as_surface *surf,
         P->pub_n = -1;
         P->rp = &res->part[i];
     }
-    double w0 = wall_now();
+    double w0 = as_now_seconds();
     for (; started < k; started++)
         if (pthread_create(&th[started], NULL, part_main, &S->parts[started]) != 0) break;
     if (started < k) {
@@ -683,7 +677,7 @@ anistar_status as_partition_run(anistar_context *ctx, const as_surface *surf,
         for (int i = started; i < k; i++) bar_leave(&S->bar);
     }
     for (int i = 0; i < started; i++) pthread_join(th[i], NULL);
-    res->wall_seconds = wall_now() - w0;
+    res->wall_seconds = as_now_seconds() - w0;
     pthread_mutex_destroy(&S->bar.m);
     pthread_cond_destroy(&S->bar.c);
     if (started < k) {
@@ -757,9 +751,9 @@ anistar_status as_partition_run(anistar_context *ctx, const as_surface *surf,
 
     /* the check: a run from the union, refined and certified like any other */
     pu.part = NULL;
-    double c0 = wall_now();
+    double c0 = as_now_seconds();
     s = as_mesher_run(ctx, surf, field, &pu, NULL, &mu);
-    res->check_seconds = wall_now() - c0;
+    res->check_seconds = as_now_seconds() - c0;
     if (mu) {
         res->certified = s == ANISTAR_OK && mu->stats.complete;
         res->final_sites = (int64_t)mu->tm.nv;

@@ -327,6 +327,7 @@ typedef struct refiner {
     uint64_t n3, low_at;
     int64_t low_vertices;
     int hard_limit; /* the vertex limit in force is the star set's hard limit */
+    int in_final;   /* the limit or stop request came during the final checks */
     as_gcache gc;           /* rule 1's pair distortions (as_gcache) */
     struct as_evpre *evpre; /* drain's parallel part, per event */
     size_t cap_evpre;
@@ -432,12 +433,6 @@ static uint64_t rng_seed(uint64_t x) {
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
     return (z ^ (z >> 31)) | 1;
-}
-
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* Turn the star set's events into queue entries. */
@@ -1613,6 +1608,7 @@ static int report(refiner *R, double now) {
 static void stop_message(refiner *R) {
     as_starset *ss = R->ss;
     long long v = (long long)(ss->n - ss->first_site);
+    const char *final = R->in_final ? "; during the final checks, before they ended" : "";
     switch (R->cnt.stop_reason) {
     case ANISTAR_STOP_MAX_VERTICES:
         if (R->hard_limit) {
@@ -1630,8 +1626,8 @@ static void stop_message(refiner *R) {
         break;
     case ANISTAR_STOP_MAX_SECONDS:
         as_fail(R->ctx, ANISTAR_INCOMPLETE,
-                "mesher: stopped at max_seconds %g (%lld vertices; %zu inconsistent facets left)",
-                R->prm->max_seconds, v, ss->ninc);
+                "mesher: stopped at max_seconds %g (%lld vertices; %zu inconsistent facets left%s)",
+                R->prm->max_seconds, v, ss->ninc, final);
         break;
     case ANISTAR_STOP_STALL:
         if (R->inc_low == SIZE_MAX)
@@ -1650,8 +1646,8 @@ static void stop_message(refiner *R) {
         break;
     case ANISTAR_STOP_REQUESTED:
         as_fail(R->ctx, ANISTAR_INCOMPLETE,
-                "mesher: stopped on request (%lld vertices; %zu inconsistent facets left)", v,
-                ss->ninc);
+                "mesher: stopped on request (%lld vertices; %zu inconsistent facets left%s)", v,
+                ss->ninc, final);
         break;
     default:
         break;
@@ -1667,7 +1663,7 @@ static int run_limits(refiner *R, int64_t maxv, double t1, uint64_t *steps, doub
         R->cnt.stop_reason = ANISTAR_STOP_MAX_VERTICES;
         return 1;
     }
-    double now = now_seconds();
+    double now = as_now_seconds();
     if (R->prm->max_seconds > 0 && now - t1 > R->prm->max_seconds) {
         R->cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
         return 1;
@@ -1711,7 +1707,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                                   as_run_ctl *ctl, anistar_mesh **out, as_starset **ss_out) {
     *out = NULL;
     if (ss_out) *ss_out = NULL;
-    double t0 = now_seconds();
+    double t0 = as_now_seconds();
     size_t bytes0 = ctx->bytes;
     ctx->peak = ctx->bytes;
     refiner R;
@@ -1811,8 +1807,13 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     }
     as_sampler_free(ctx, ss->sampler); /* the analysis stays with the surface */
     ss->sampler = NULL;
-    double t1 = now_seconds();
+    double t1 = as_now_seconds();
     R.cnt.t_init = t1 - t0;
+    /* design: the final checks test the run's limits between stars too (the zone check of
+     * a 100,000-vertex run takes tens of seconds): max_seconds and stop requests hold to
+     * the end, not only between refinement steps */
+    as_halt halt = {prm->max_seconds > 0 ? t1 + prm->max_seconds : 0, ctl ? &ctl->stop : NULL,
+                    AS_HALT_NONE};
     double last_report = t1;
     uint64_t steps = 0;
     int requeues = 0;
@@ -1867,13 +1868,16 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                  * (as_starset_verify_zones, on_held_piece); a star found wrong takes its
                  * whole Delaunay region as its zone and the refinement goes on. */
                 size_t opened = 0, swept = 0;
+                if (as_halt_due(&halt)) break;
                 if ((s = sweep_rules(&R, &swept)) != ANISTAR_OK) break;
                 if (swept) {
                     R.cnt.swept += swept;
                     continue;
                 }
                 if ((s = pieces_update(&R)) != ANISTAR_OK ||
-                    (s = as_starset_verify_zones(ss, on_held_piece, &R, &opened)) != ANISTAR_OK)
+                    (s = as_starset_verify_zones(ss, on_held_piece, &R, &halt, &opened)) !=
+                        ANISTAR_OK ||
+                    as_halt_due(&halt))
                     break;
                 if (opened) {
                     R.cnt.zones_opened += opened;
@@ -1885,12 +1889,12 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                  * sizing field below sf works); below AS_FEATURE_ALPHA_MIN, stop. */
                 int ok = 0, refinable = 0;
                 uint64_t sig = 0;
-                double tc = now_seconds();
+                double tc = as_now_seconds();
                 /* design: the approximation error (4 projections per facet, a tenth of
                  * the brain's run) only for the output kept (as_mesher_output_errors) */
                 s = as_mesher_output(ss, prm, &R.cnt, 1, 0, &done);
                 if (s == ANISTAR_OK) s = as_mesher_certify(ss, done, &ok, &refinable, &sig);
-                t_check = now_seconds() - tc;
+                t_check = as_now_seconds() - tc;
                 if (s != ANISTAR_OK) break;
                 if (ok) {
                     complete = 1;
@@ -1997,7 +2001,14 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         R.cnt.rule[rule]++;
         if (rule == JOB_RULE1) R.cnt.cause[cause]++;
     }
-    double t2 = now_seconds();
+    if (s == ANISTAR_OK && !complete && !done && R.cnt.stop_reason == ANISTAR_STOP_DONE &&
+        atomic_load(&halt.halted) != AS_HALT_NONE) {
+        /* the final checks were halted (above): a limit, as between steps */
+        R.cnt.stop_reason = atomic_load(&halt.halted) == AS_HALT_TIME ? ANISTAR_STOP_MAX_SECONDS
+                                                                      : ANISTAR_STOP_REQUESTED;
+        R.in_final = 1;
+    }
+    double t2 = as_now_seconds();
     R.cnt.t_refine = t2 - t1;
     for (int k = 0; k < 3; k++) as_queue_free(ctx, &R.q[k]);
     gcache_free(ctx, &R.gc);
@@ -2053,7 +2064,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             }
         }
         if (s == ANISTAR_OK) {
-            double t3 = now_seconds();
+            double t3 = as_now_seconds();
             anistar_mesh_stats *S = &(*out)->stats;
             /* the final checks' last pass (output and certification) counts as output,
              * the earlier ones (which led to more refinement) as refinement */
@@ -2073,7 +2084,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             *out = NULL;
         }
     }
-    if (ctl) publish(&R, now_seconds());
+    if (ctl) publish(&R, as_now_seconds());
     if (ss_out && (s == ANISTAR_OK || s == ANISTAR_INCOMPLETE)) {
         *ss_out = ss;
     } else {

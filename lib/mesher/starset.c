@@ -1393,11 +1393,13 @@ typedef struct vz_job {
     uint8_t *wrong;
     const as_kdtree *recent;
     double reach, diag;
+    as_halt *halt;
 } vz_job;
 
 static anistar_status vz_task(void *arg, int32_t k, int t, anistar_context *tctx) {
     (void)tctx;
     vz_job *J = arg;
+    if (J->halt && as_halt_due(J->halt)) return ANISTAR_OK; /* wrong[k] stays 0 */
     as_starset *ss = J->ss;
     int wrong = 0;
     anistar_status s = verify_star(ss, &ss->tws[t], &ss->tenv[t], &ss->tsc[t], J->recent,
@@ -1407,7 +1409,7 @@ static anistar_status vz_task(void *arg, int32_t k, int t, anistar_context *tctx
 }
 
 anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
-                                       size_t *opened) {
+                                       as_halt *halt, size_t *opened) {
     anistar_status s = ANISTAR_OK;
     *opened = 0;
     size_t nsel = 0, cap = 0;
@@ -1459,7 +1461,7 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
         as_free(ss->ctx, ids, nr * sizeof *ids);
         if (s != ANISTAR_OK) goto done;
     }
-    vz_job J = {ss, sel, wrong, recent, AS_STARSET_VERIFY_REACH * rmax, diag};
+    vz_job J = {ss, sel, wrong, recent, AS_STARSET_VERIFY_REACH * rmax, diag, halt};
     /* design: every selected star is checked first (in parallel with threads, each on its
      * thread's workspace: a check reads only its star and the sites), then the wrong ones
      * are opened and regrown in the stars' order (a regrowth changes only its own star,
@@ -1470,13 +1472,16 @@ anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32
         as_starset_collect_counts(ss);
     } else {
         for (size_t k = 0; k < nsel && s == ANISTAR_OK; k++) {
+            if (halt && as_halt_due(halt)) break;
             int w = 0;
             s = verify_star(ss, &ss->ws, &ss->env, &ss->sc, recent, sel[k], J.reach, diag,
                             &w);
             wrong[k] = (uint8_t)w;
         }
     }
-    if (s != ANISTAR_OK) goto done;
+    /* design: a halted check opens nothing: the stars it did not reach are unjudged, and
+     * the run stops with the consistent facets it has (issue 12's contract) */
+    if (s != ANISTAR_OK || (halt && atomic_load(&halt->halted))) goto done;
     for (size_t k = 0; k < nsel; k++) {
         if (!wrong[k]) continue;
         /* the ball zone missed sites that change v's surface star: v takes its whole

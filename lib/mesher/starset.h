@@ -282,11 +282,13 @@ void as_bpoint_free(anistar_context *ctx, as_bpoint *b);
  * (every one when need is NULL) against the sites that conflict with it within a reach
  * of 4 r_max, deepened until each difference is decided; a star whose restricted facets
  * differ keeps its whole Delaunay region as its zone from then on (zfull), is regrown, and
- * its changes go to the facet table and the events. *opened: how many. OK, ENOMEM,
- * EINTERNAL. See the design note in starset.c.
+ * its changes go to the facet table and the events. *opened: how many. halt (NULL: none)
+ * is tested before each star: once it is due the remaining stars are not checked and no
+ * star is opened (*opened 0; the caller reads halt->halted). OK, ENOMEM, EINTERNAL. See
+ * the design note in starset.c.
  */
 anistar_status as_starset_verify_zones(as_starset *ss, int (*need)(void *, int32_t), void *arg,
-                                       size_t *opened);
+                                       as_halt *halt, size_t *opened);
 
 /*
  * Simulate p's star without changing anything: fills ss->spare with the star p would

@@ -82,6 +82,16 @@ static void voxel_world(const as_bspline *bs, double i, double j, double k, doub
 
 /* ---- interpolation ------------------------------------------------------------------ */
 
+/* The extension's fade at d voxels outside the image (bspline.h): 1 - the quintic
+ * smoothstep of |d| / (PAD + 1), 0 beyond PAD. */
+static double fade_at(ptrdiff_t d) {
+    if (d < 0) d = -d;
+    if (d > AS_BSPLINE_PAD) return 0;
+    double t = (double)d / (AS_BSPLINE_PAD + 1);
+    return 1 - (10 * t * t * t - 15 * t * t * t * t + 6 * t * t * t * t * t);
+}
+static ptrdiff_t clampi(ptrdiff_t i, ptrdiff_t n) { return i < 0 ? 0 : i > n - 1 ? n - 1 : i; }
+
 static void test_interpolates_voxels(void **state) {
     (void)state;
     fixture *f = fx_new();
@@ -100,14 +110,19 @@ static void test_interpolates_voxels(void **state) {
         double vmax = 2;
         const ptrdiff_t n[3] = {(ptrdiff_t)dims[t][0], (ptrdiff_t)dims[t][1],
                                 (ptrdiff_t)dims[t][2]};
-        /* Every integer position of [-6, n+5]^3: the voxel inside, the background outside. */
+        /* Every integer position of [-7, n+6]^3: the voxel inside; outside, the nearest
+         * border voxel faded to the background (bspline.h), the background from PAD + 1
+         * voxels out. */
         long checked = 0;
-        for (ptrdiff_t k = -6; k < n[2] + 6; k++)
-            for (ptrdiff_t j = -6; j < n[1] + 6; j++)
-                for (ptrdiff_t i = -6; i < n[0] + 6; i++) {
-                    int inside = i >= 0 && j >= 0 && k >= 0 && i < n[0] && j < n[1] && k < n[2];
+        const ptrdiff_t e = AS_BSPLINE_PAD + 3;
+        for (ptrdiff_t k = -e; k < n[2] + e; k++)
+            for (ptrdiff_t j = -e; j < n[1] + e; j++)
+                for (ptrdiff_t i = -e; i < n[0] + e; i++) {
+                    ptrdiff_t ci = clampi(i, n[0]), cj = clampi(j, n[1]), ck = clampi(k, n[2]);
+                    double fade = fade_at(i - ci) * fade_at(j - cj) * fade_at(k - ck);
                     double expect =
-                        inside ? as_image_value(img, (size_t)(i + n[0] * (j + n[1] * k))) : bg;
+                        bg + (as_image_value(img, (size_t)(ci + n[0] * (cj + n[1] * ck))) - bg) *
+                                 fade;
                     double p[3], v[3] = {(double)i, (double)j, (double)k};
                     voxel_world(bs, (double)i, (double)j, (double)k, p);
                     assert_near(as_bspline_value(bs, p), expect, 1e-12 * vmax);
@@ -411,12 +426,13 @@ static void test_background_outside(void **state) {
     assert_true(as_bspline_background(bs) == bg);
     const ptrdiff_t n[3] = {12, 10, 8};
     for (int it = 0; it < 2000; it++) {
-        /* A point d voxels outside along axis a, anywhere along the others. */
+        /* A point d voxels outside the padded grid along axis a (PAD + d outside the
+         * image), anywhere along the others. */
         int a = it % 3;
         double d = tu_rng_range(&rng, 0.5, AS_BSPLINE_REACH + 10);
         double v[3];
         for (int c = 0; c < 3; c++) v[c] = tu_rng_range(&rng, -40, (double)n[c] + 40);
-        v[a] = (it / 3) % 2 ? (double)(n[a] - 1) + d : -d;
+        v[a] = (it / 3) % 2 ? (double)(n[a] - 1) + AS_BSPLINE_PAD + d : -AS_BSPLINE_PAD - d;
         double g[3], h[6];
         double fv = as_bspline_value_grad_hess_voxel(bs, v, g, h);
         assert_true(as_bspline_value_voxel(bs, v) == fv);
@@ -424,7 +440,8 @@ static void test_background_outside(void **state) {
         assert_true(fabs(fv - bg) <= pow(POLE_ABS, d - 2) * cmax);
         int beyond = 0;
         for (int c = 0; c < 3; c++)
-            beyond |= v[c] < -AS_BSPLINE_REACH || v[c] > (double)(n[c] - 1) + AS_BSPLINE_REACH;
+            beyond |= v[c] < -(AS_BSPLINE_PAD + AS_BSPLINE_REACH) ||
+                      v[c] > (double)(n[c] - 1) + AS_BSPLINE_PAD + AS_BSPLINE_REACH;
         if (beyond) {
             assert_true(fv == bg);
             for (int c = 0; c < 3; c++) assert_true(g[c] == 0);
@@ -434,7 +451,7 @@ static void test_background_outside(void **state) {
     /* The value tends to the background: |f - b| shrinks along a ray leaving the image. */
     double prev = INFINITY;
     for (int d = 2; d < AS_BSPLINE_REACH; d += 3) {
-        double v[3] = {5.5, 4.25, (double)(n[2] - 1) + d + 0.5};
+        double v[3] = {5.5, 4.25, (double)(n[2] - 1) + AS_BSPLINE_PAD + d + 0.5};
         double dev = fabs(as_bspline_value_voxel(bs, v) - bg);
         assert_true(dev < prev || dev == 0);
         prev = dev;
@@ -444,7 +461,8 @@ static void test_background_outside(void **state) {
     static const double levels[] = {-2.9, -2.0, -1.0, 0.3, 0.9, -3.1, -4.5};
     for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++) {
         double m = as_bspline_margin(bs, levels[l]);
-        assert_true(m >= 0 && m <= AS_BSPLINE_REACH && m == floor(m));
+        assert_true(m >= AS_BSPLINE_PAD && m <= AS_BSPLINE_PAD + AS_BSPLINE_REACH &&
+                    m == floor(m));
         for (int it = 0; it < 300; it++) {
             int a = it % 3;
             double v[3];
@@ -455,7 +473,7 @@ static void test_background_outside(void **state) {
             assert_true(fabs(fv - bg) < fabs(levels[l] - bg));
         }
     }
-    assert_true(as_bspline_margin(bs, bg) == AS_BSPLINE_REACH);
+    assert_true(as_bspline_margin(bs, bg) == AS_BSPLINE_PAD + AS_BSPLINE_REACH);
     /* Non-finite points give NaN. */
     double pn[3] = {NAN, 0, 0}, pi[3] = {0, INFINITY, 0}, g[3], h[6];
     assert_true(isnan(as_bspline_value(bs, pn)));
@@ -504,12 +522,12 @@ static void test_border_surface_closes(void **state) {
                 assert_true(as_bspline_value(bs, p) - 0.5 > 0);
             }
     double m = as_bspline_margin(bs, 0.5);
-    assert_true(m >= 1 && m <= 4);
+    assert_true(m >= AS_BSPLINE_PAD + 1 && m <= AS_BSPLINE_PAD + 4);
     double cm[3], rm;
     as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
     assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) - 0.5 < 0);
-    /* Tighter: already one voxel beyond the grid the sign is negative. */
-    as_grid_bounding_sphere(as_bspline_grid(bs), 1, cm, &rm);
+    /* Tighter: already one voxel beyond the fade the sign is negative. */
+    as_grid_bounding_sphere(as_bspline_grid(bs), AS_BSPLINE_PAD + 1, cm, &rm);
     assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) - 0.5 < 0);
     as_bspline_free(f->ctx, bs);
     as_image_free(f->ctx, img);
@@ -523,7 +541,7 @@ static void test_border_surface_closes(void **state) {
         top_inside = fmax(top_inside, as_image_value(img, 61 * 128 * 128 + i));
     assert_true(top_inside > 40);
     m = as_bspline_margin(bs, 40);
-    assert_true(m >= 1 && m < AS_BSPLINE_REACH);
+    assert_true(m >= AS_BSPLINE_PAD + 1 && m < AS_BSPLINE_PAD + AS_BSPLINE_REACH);
     as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
     assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) < 40);
     /* Along the z axis through a voxel above 40 on the last slice, f goes below 40
@@ -532,7 +550,7 @@ static void test_border_surface_closes(void **state) {
         if (as_image_value(img, 61 * 128 * 128 + i) > 40) {
             double v[3] = {(double)(i % 128), (double)(i / 128), 61};
             assert_true(as_bspline_value_voxel(bs, v) > 40);
-            for (double t = 61 + m; t < 61 + AS_BSPLINE_REACH + 2; t += 0.37) {
+            for (double t = 61 + m; t < 61 + AS_BSPLINE_PAD + AS_BSPLINE_REACH + 2; t += 0.37) {
                 v[2] = t;
                 assert_true(as_bspline_value_voxel(bs, v) < 40);
             }

@@ -26,10 +26,11 @@
 #define AS_BSPLINE_POLE (-0.26794919243112270647)
 
 struct as_bspline {
-    as_grid grid;
-    ptrdiff_t n[3];      /* voxels per axis */
-    ptrdiff_t stride[3]; /* 1, nx, nx*ny */
-    double *coef;        /* nx*ny*nz coefficients of (voxels - background), x fastest */
+    as_grid grid;        /* the padded grid: AS_BSPLINE_PAD voxels more on every side */
+    as_grid image;       /* the image's own grid (as_bspline_grid) */
+    ptrdiff_t n[3];      /* padded voxels per axis */
+    ptrdiff_t stride[3]; /* 1, nx, nx*ny (padded) */
+    double *coef;        /* nx*ny*nz coefficients of (padded data - background), x fastest */
     size_t coef_bytes;
     double background;
     double coef_max;
@@ -72,6 +73,22 @@ static void as_prefilter_axis(double *c, size_t n, size_t step, size_t width) {
     }
 }
 
+/* The fade of the extension at d voxels outside the image (0 <= d): 1 at the border, 0
+ * from AS_BSPLINE_PAD + 1 on, 1 - smoothstep in between (the quintic 6t^5 - 15t^4 + 10t^3
+ * of t = d / (PAD + 1): C2 where it meets 1 and 0). */
+static double as_fade(ptrdiff_t d) {
+    if (d <= 0) return 1.0;
+    if (d > AS_BSPLINE_PAD) return 0.0;
+    double t = (double)d / (AS_BSPLINE_PAD + 1);
+    return 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0);
+}
+
+/* The distance outside [0, n-1] of padded index I (image index I - PAD). */
+static ptrdiff_t as_outside(ptrdiff_t I, ptrdiff_t n) {
+    ptrdiff_t i = I - AS_BSPLINE_PAD;
+    return i < 0 ? -i : i > n - 1 ? i - (n - 1) : 0;
+}
+
 anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, double background,
                                  as_bspline **out) {
     *out = NULL;
@@ -85,41 +102,76 @@ anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, doub
                        "B-spline: image has %zu non-finite voxels (NaN or infinite), the first "
                        "at index %zu",
                        bad, first);
-    size_t count = img->count, bytes;
-    if (as_mul_size(count, sizeof(double), &bytes) || bytes > (size_t)PTRDIFF_MAX)
-        return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: %zu coefficients overflow the address space",
-                       count);
+    const size_t nx = img->nx, ny = img->ny, nz = img->nz, P = AS_BSPLINE_PAD;
+    const size_t Nx = nx + 2 * P, Ny = ny + 2 * P, Nz = nz + 2 * P;
+    size_t count, bytes;
+    if (nx > PTRDIFF_MAX / 4 || ny > PTRDIFF_MAX / 4 || nz > PTRDIFF_MAX / 4 ||
+        as_mul_size(Nx, Ny, &count) || as_mul_size(count, Nz, &count) ||
+        as_mul_size(count, sizeof(double), &bytes) || bytes > (size_t)PTRDIFF_MAX)
+        return as_fail(ctx, ANISTAR_ENOMEM,
+                       "B-spline: %zu x %zu x %zu coefficients overflow the address space", Nx,
+                       Ny, Nz);
+    double *rowbuf = as_alloc_array(ctx, nx, sizeof(double));
+    if (!rowbuf) return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory");
     as_bspline *bs = as_alloc(ctx, sizeof *bs);
-    if (!bs) return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory");
+    if (!bs) {
+        as_free(ctx, rowbuf, nx * sizeof(double));
+        return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory");
+    }
     memset(bs, 0, sizeof *bs);
     bs->coef = as_alloc(ctx, bytes);
     if (!bs->coef) {
+        as_free(ctx, rowbuf, nx * sizeof(double));
         as_free(ctx, bs, sizeof *bs);
         return as_fail(ctx, ANISTAR_ENOMEM, "B-spline: out of memory for %zu bytes of coefficients",
                        bytes);
     }
     bs->coef_bytes = bytes;
+    bs->image = img->grid;
+    /* the padded grid: the same axes, the origin PAD voxels back along each */
     bs->grid = img->grid;
+    for (int a = 0; a < 3; a++) {
+        bs->grid.n[a] = img->grid.n[a] + 2 * P;
+        bs->grid.origin[a] -= (double)P * (img->grid.a[3 * a] + img->grid.a[3 * a + 1] +
+                                           img->grid.a[3 * a + 2]);
+    }
     bs->background = background;
-    size_t nx = img->nx, ny = img->ny, nz = img->nz;
-    bs->n[0] = (ptrdiff_t)nx;
-    bs->n[1] = (ptrdiff_t)ny;
-    bs->n[2] = (ptrdiff_t)nz;
+    bs->n[0] = (ptrdiff_t)Nx;
+    bs->n[1] = (ptrdiff_t)Ny;
+    bs->n[2] = (ptrdiff_t)Nz;
     bs->stride[0] = 1;
-    bs->stride[1] = (ptrdiff_t)nx;
-    bs->stride[2] = (ptrdiff_t)(nx * ny);
+    bs->stride[1] = (ptrdiff_t)Nx;
+    bs->stride[2] = (ptrdiff_t)(Nx * Ny);
     bs->zpow[0] = 1.0;
     for (int d = 1; d < AS_BSPLINE_REACH + 4; d++) bs->zpow[d] = bs->zpow[d - 1] * AS_BSPLINE_POLE;
 
-    double *c = bs->coef;
-    for (size_t r = 0; r < ny * nz; r++) { /* convert, subtract b and filter x, row by row */
-        double *row = c + r * nx;
-        as_image_to_double(img, r * nx, nx, row);
-        for (size_t i = 0; i < nx; i++) row[i] -= background;
-        as_prefilter_row(row, nx);
-    }
-    for (size_t k = 0; k < nz; k++) as_prefilter_axis(c + k * nx * ny, ny, nx, nx);
-    as_prefilter_axis(c, nz, nx * ny, nx * ny);
+    /* design: the data beyond the image fades from the border voxels to the background
+     * over PAD voxels (as_fade per axis, multiplied), then the padded rows are filtered
+     * as before; see bspline.h for why a step to the background is not used */
+    double *c = bs->coef, fx[2 * AS_BSPLINE_PAD + 1];
+    for (size_t d = 0; d <= 2 * P; d++) fx[d] = as_fade((ptrdiff_t)d);
+    for (size_t K = 0; K < Nz; K++)
+        for (size_t J = 0; J < Ny; J++) {
+            double *row = c + (K * Ny + J) * Nx;
+            double wyz = as_fade(as_outside((ptrdiff_t)J, (ptrdiff_t)ny)) *
+                         as_fade(as_outside((ptrdiff_t)K, (ptrdiff_t)nz));
+            if (wyz == 0) {
+                memset(row, 0, Nx * sizeof *row);
+                continue;
+            }
+            size_t j = (size_t)((ptrdiff_t)J - (ptrdiff_t)P < 0 ? 0 : J - P > ny - 1 ? ny - 1 : J - P);
+            size_t k = (size_t)((ptrdiff_t)K - (ptrdiff_t)P < 0 ? 0 : K - P > nz - 1 ? nz - 1 : K - P);
+            as_image_to_double(img, (k * ny + j) * nx, nx, rowbuf);
+            for (size_t i = 0; i < nx; i++) row[P + i] = (rowbuf[i] - background) * wyz;
+            for (size_t d = 1; d <= P; d++) {
+                row[P - d] = row[P] * fx[d];
+                row[P + nx - 1 + d] = row[P + nx - 1] * fx[d];
+            }
+            as_prefilter_row(row, Nx);
+        }
+    as_free(ctx, rowbuf, nx * sizeof(double));
+    for (size_t K = 0; K < Nz; K++) as_prefilter_axis(c + K * Nx * Ny, Ny, Nx, Nx);
+    as_prefilter_axis(c, Nz, Nx * Ny, Nx * Ny);
 
     double m = 0;
     int finite = 1;
@@ -146,18 +198,18 @@ void as_bspline_free(anistar_context *ctx, as_bspline *bs) {
     as_free(ctx, bs, sizeof *bs);
 }
 
-const as_grid *as_bspline_grid(const as_bspline *bs) { return &bs->grid; }
+const as_grid *as_bspline_grid(const as_bspline *bs) { return &bs->image; }
 double as_bspline_background(const as_bspline *bs) { return bs->background; }
 double as_bspline_coef_max(const as_bspline *bs) { return bs->coef_max; }
 
 double as_bspline_margin(const as_bspline *bs, double level) {
     double gap = fabs(level - bs->background);
-    if (!(gap > 0)) return AS_BSPLINE_REACH;
+    if (!(gap > 0)) return AS_BSPLINE_PAD + AS_BSPLINE_REACH;
     if (bs->coef_max == 0) return 0;
     double d = 2.0 + log(gap / bs->coef_max) / log(-AS_BSPLINE_POLE);
-    if (!(d > 0)) return 0;
+    if (!(d > 0)) return AS_BSPLINE_PAD;
     d = ceil(d);
-    return d < AS_BSPLINE_REACH ? d : AS_BSPLINE_REACH;
+    return AS_BSPLINE_PAD + (d < AS_BSPLINE_REACH ? d : AS_BSPLINE_REACH);
 }
 
 /* ---- evaluation --------------------------------------------------------------------- */
@@ -258,7 +310,8 @@ static inline int as_finite3(const double v[3]) {
     return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
 }
 
-double as_bspline_value_voxel(const as_bspline *bs, const double v[3]) {
+/* f at padded voxel coordinates v (image coordinates + AS_BSPLINE_PAD). */
+static double as_value_padded(const as_bspline *bs, const double v[3]) {
     if (!as_finite3(v)) return NAN;
     as_axis x, y, z;
     if (!as_axis_prepare(bs, 0, v[0], 0, &x) || !as_axis_prepare(bs, 1, v[1], 0, &y) ||
@@ -349,9 +402,15 @@ BS_INLINE double as_eval_voxel(const as_bspline *bs, const double v[3], int orde
     return bs->background + f;
 }
 
+double as_bspline_value_voxel(const as_bspline *bs, const double v[3]) {
+    const double w[3] = {v[0] + AS_BSPLINE_PAD, v[1] + AS_BSPLINE_PAD, v[2] + AS_BSPLINE_PAD};
+    return as_value_padded(bs, w);
+}
+
 double as_bspline_value_grad_hess_voxel(const as_bspline *bs, const double v[3], double g[3],
                                         double h[6]) {
-    return as_eval_voxel(bs, v, 2, g, h);
+    const double w[3] = {v[0] + AS_BSPLINE_PAD, v[1] + AS_BSPLINE_PAD, v[2] + AS_BSPLINE_PAD};
+    return as_eval_voxel(bs, w, 2, g, h);
 }
 
 /* World gradient from the voxel one: g_w[a] = sum_i g_v[i] (A^-1)_{i a}. */
@@ -377,7 +436,7 @@ static void as_hess_to_world(const double ai[9], const double hv[6], double h[6]
 double as_bspline_value(const as_bspline *bs, const double p[3]) {
     double v[3];
     as_grid_world_to_voxel(&bs->grid, p, v);
-    return as_bspline_value_voxel(bs, v);
+    return as_value_padded(bs, v);
 }
 
 double as_bspline_value_grad(const as_bspline *bs, const double p[3], double g[3]) {

@@ -136,7 +136,7 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
 }
 
 /* as_image_surface_lattice (surface.h). design: f at the lattice nodes, two z-layers at a
- * time (the nodes of layer z and z + 1, (nx + 2)(ny + 2) values each), so memory stays
+ * time (the nodes of layer z and z + 1, (nx + 10)(ny + 10) values each: the image grid and PAD + 1 nodes more on every side), so memory stays
  * O(nx ny) whatever the image; an edge whose ends have opposite signs (f >= 0 against
  * f < 0, the sign convention of the sampler) holds a crossing, solved by
  * as_surface_crossing between its ends. The points grow in a doubling array. */
@@ -154,7 +154,10 @@ anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *
         vmin = fmin(vmin, l);
     }
     *voxel = vmin;
-    const long lx = (long)g->n[0] + 2, ly = (long)g->n[1] + 2, lz = (long)g->n[2] + 2;
+    /* the nodes reach a voxel past the fade (bspline.h): where an object touches the
+     * image's border, its surface closes there */
+    const long o = AS_BSPLINE_PAD + 1;
+    const long lx = (long)g->n[0] + 2 * o, ly = (long)g->n[1] + 2 * o, lz = (long)g->n[2] + 2 * o;
     const size_t layer = (size_t)lx * (size_t)ly;
     double *val = as_alloc_array(ctx, 2 * layer, sizeof(double));
     if (!val) return as_fail(ctx, ANISTAR_ENOMEM, "image lattice: out of memory");
@@ -163,7 +166,7 @@ anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *
     anistar_status st = ANISTAR_OK;
 #define LAT_NODE(i, j, k, out)                                                                 \
     do {                                                                                       \
-        double v_[3] = {(double)(i) - 1, (double)(j) - 1, (double)(k) - 1};                    \
+        double v_[3] = {(double)((i) - o), (double)((j) - o), (double)((k) - o)};              \
         as_grid_voxel_to_world(g, v_, out);                                                    \
     } while (0)
     for (long k = 0; k < lz && !st; k++) {

@@ -72,6 +72,8 @@ typedef struct surface_opts {
     double iso; /* --iso V (images) */
     int has_iso;
     int inside; /* --inside greater|less (images): ANISTAR_INSIDE_GREATER / _LESS, 0 unset */
+    int fit;    /* --fit auto|interpolate|smooth (images): ANISTAR_FIT_*, -1 unset */
+    int fit_used; /* images: the fit the surface uses (anistar_surface_image_fit) */
 } surface_opts;
 
 /* What a SURFACE FILE is, by its extension (case-insensitive). */
@@ -106,7 +108,8 @@ static int file_kind(const char *path) {
 static int surface_option(surface_opts *so, int argc, char **argv, int *i) {
     const char *a = argv[*i];
     int takes_value = !strcmp(a, "--implicit") || !strcmp(a, "--builtin") ||
-                      !strcmp(a, "--bound") || !strcmp(a, "--iso") || !strcmp(a, "--inside");
+                      !strcmp(a, "--bound") || !strcmp(a, "--iso") || !strcmp(a, "--inside") ||
+                      !strcmp(a, "--fit");
     if (!takes_value) {
         if (a[0] == '-' && a[1] != '\0') return 0;
         if (so->file) {
@@ -139,6 +142,18 @@ static int surface_option(surface_opts *so, int argc, char **argv, int *i) {
             return -1;
         }
         so->has_bound = 1;
+    } else if (!strcmp(a, "--fit")) {
+        if (so->fit >= 0) {
+            say("--fit given twice");
+            return -1;
+        }
+        if (!strcmp(v, "auto")) so->fit = ANISTAR_FIT_AUTO;
+        else if (!strcmp(v, "interpolate")) so->fit = ANISTAR_FIT_INTERPOLATE;
+        else if (!strcmp(v, "smooth")) so->fit = ANISTAR_FIT_SMOOTH;
+        else {
+            say("--fit expects auto, interpolate or smooth, got '%s'", v);
+            return -1;
+        }
     } else if (!strcmp(a, "--inside")) {
         if (so->inside) {
             say("--inside given twice");
@@ -191,9 +206,9 @@ static int surface_check(const surface_opts *so) {
             so->file);
         return -1;
     }
-    if ((so->has_iso || so->inside) && kind != FILE_IMAGE) {
+    if ((so->has_iso || so->inside || so->fit >= 0) && kind != FILE_IMAGE) {
         say("%s goes with an image FILE (.inr .nrrd .nhdr .mha .mhd)",
-            so->has_iso ? "--iso" : "--inside");
+            so->has_iso ? "--iso" : so->inside ? "--inside" : "--fit");
         return -1;
     }
     return 0;
@@ -221,9 +236,17 @@ static int surface_make(anistar_context *ctx, surface_opts *so, anistar_surface 
         }
         if (st != ANISTAR_OK)
             ;
-        else if (file_kind(so->file) == FILE_IMAGE)
-            st = anistar_surface_from_image_file(
-                ctx, so->file, so->iso, so->inside ? so->inside : ANISTAR_INSIDE_GREATER, s);
+        else if (file_kind(so->file) == FILE_IMAGE) {
+            st = anistar_surface_from_image_file_fit(
+                ctx, so->file, so->iso, so->inside ? so->inside : ANISTAR_INSIDE_GREATER,
+                so->fit >= 0 ? so->fit : ANISTAR_FIT_AUTO, s);
+            if (st == ANISTAR_OK) so->fit_used = anistar_surface_image_fit(*s);
+            if (st == ANISTAR_OK && so->fit < 0 && so->fit_used == ANISTAR_FIT_SMOOTH)
+                fprintf(stderr,
+                        "anistar: %s: at most 16 distinct voxel values (labels or a mask): the "
+                        "smoothing B-spline (--fit interpolate for the interpolating one)\n",
+                        so->file);
+        }
         else
             st = anistar_surface_read(ctx, so->file, s);
         if (st == ANISTAR_OK) return EXIT_OK;
@@ -259,6 +282,7 @@ static void json_string(const char *s) {
 static int cmd_probe(int argc, char **argv) {
     surface_opts so;
     memset(&so, 0, sizeof so);
+    so.fit = -1;
     const char *metric = NULL;
     double at[3];
     int has_at = 0;
@@ -1048,6 +1072,9 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
         fprintf(f, ", \"%s\": %.17g", mesh_params[i].json, values[i]);
     fprintf(f, ", \"optimize\": %s", optimize ? "true" : "false");
     if (so->has_iso) fprintf(f, ", \"iso\": %.17g", so->iso);
+    if (so->fit_used)
+        fprintf(f, ", \"fit\": \"%s\"",
+                so->fit_used == ANISTAR_FIT_SMOOTH ? "smooth" : "interpolate");
     fprintf(f, "},\n  \"seed\": %.17g\n}\n", values[MESH_SEED]);
     int bad = ferror(f);
     if (fclose(f) != 0) bad = 1;
@@ -1059,6 +1086,7 @@ static int mesh_stats_write(const char *path, const anistar_mesh_stats *st,
 static int cmd_mesh(int argc, char **argv) {
     surface_opts so;
     memset(&so, 0, sizeof so);
+    so.fit = -1;
     const char *metric = NULL, *sol = NULL, *stats = NULL, *outs[MAX_OUTPUTS];
     int nouts = 0, quiet = 0, optimize = 0, has_value[NMESH_PARAMS] = {0};
     double value[NMESH_PARAMS];
@@ -1324,9 +1352,12 @@ static void help(void) {
            "  --builtin NAME[,PARAM=V...][,bound=R]  a built-in surface (below)\n"
            "  FILE.off|.obj|.ply|.stl|.mesh|.meshb|.vtk|.vtu  a closed triangle mesh\n"
            "  FILE.inr|.nrrd|.nhdr|.mha|.mhd [--iso V] [--inside greater|less]\n"
-           "                                        an isosurface of a 3D image (inside:\n"
+           "       [--fit auto|interpolate|smooth]  an isosurface of a 3D image (inside:\n"
            "                                        values greater than V, the default;\n"
-           "                                        no --iso: Otsu's threshold)\n\n"
+           "                                        no --iso: Otsu's threshold) of its cubic\n"
+           "                                        B-spline, through the voxel values or\n"
+           "                                        smoothing them (auto: smooth for at\n"
+           "                                        most 16 distinct values, labels, masks)\n\n"
            "--metric SPEC:\n"
            "  euclidean | uniform[,h=H] | curvature[,eps=E][,en=N][,power=P]\n"
            "  | shock[,lambda=L][,phi=F][,en=N] | gradient:EXPR[,phi=F][,en=N]\n"

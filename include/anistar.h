@@ -298,10 +298,20 @@ ANISTAR_API anistar_status anistar_surface_from_triangles(anistar_context *ctx,
 #define ANISTAR_INSIDE_GREATER 1 /* inside where the image value exceeds iso (gray images) */
 #define ANISTAR_INSIDE_LESS (-1) /* inside where the image value is below iso */
 
+/* How an image is reconstructed (the fit of its cubic B-spline; docs/api.md, images). */
+#define ANISTAR_FIT_AUTO 0        /* SMOOTH for an image of at most 16 distinct voxel values
+                                     (a label image, a mask), INTERPOLATE for any other */
+#define ANISTAR_FIT_INTERPOLATE 1 /* through every voxel value; rings (overshoots) by up to
+                                     11% of a jump on each side of it */
+#define ANISTAR_FIT_SMOOTH 2      /* the approximating spline: between the values of the
+                                     4x4x4 voxels around each point (no overshoot), blurred
+                                     by about a voxel */
+
 /*
  * The isosurface value = iso of a 3D image file (.inr .nrrd .nhdr .mha .mhd; gzip and
  * bzip2 encodings are not supported): the image is reconstructed by a cubic B-spline of
- * its voxels (C2, interpolating), f = iso - value with inside = ANISTAR_INSIDE_GREATER
+ * its voxels (C2; the fit ANISTAR_FIT_AUTO: smoothing for label images and masks,
+ * interpolating for others), f = iso - value with inside = ANISTAR_INSIDE_GREATER
  * (f < 0 where the value exceeds iso), f = value - iso with ANISTAR_INSIDE_LESS. Outside
  * the image the reconstruction tends to a background value on the outside side of iso
  * (the smallest voxel value for GREATER, the largest for LESS), so an object touching the
@@ -327,6 +337,22 @@ ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
                                                       const double spacing[3],
                                                       const double origin[3], double iso,
                                                       int inside, anistar_surface **out);
+
+/* The two above with the fit chosen (ANISTAR_FIT_*; EINVAL for another value). */
+ANISTAR_API anistar_status anistar_surface_from_image_file_fit(anistar_context *ctx,
+                                                               const char *path, double iso,
+                                                               int inside, int fit,
+                                                               anistar_surface **out);
+ANISTAR_API anistar_status anistar_surface_from_image_fit(anistar_context *ctx,
+                                                          const double *voxels,
+                                                          const size_t dims[3],
+                                                          const double spacing[3],
+                                                          const double origin[3], double iso,
+                                                          int inside, int fit,
+                                                          anistar_surface **out);
+/* The fit an image surface uses: ANISTAR_FIT_INTERPOLATE or ANISTAR_FIT_SMOOTH (what
+ * ANISTAR_FIT_AUTO chose); ANISTAR_FIT_AUTO (0) when s is not an image surface or NULL. */
+ANISTAR_API int anistar_surface_image_fit(const anistar_surface *s);
 
 /*
  * An automatic isovalue: Otsu's threshold of the voxels (the value that best splits them

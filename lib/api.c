@@ -726,6 +726,13 @@ ANISTAR_API anistar_status anistar_surface_from_triangles(anistar_context *ctx,
 ANISTAR_API anistar_status anistar_surface_from_image_file(anistar_context *ctx,
                                                            const char *path, double iso,
                                                            int inside, anistar_surface **out) {
+    return anistar_surface_from_image_file_fit(ctx, path, iso, inside, ANISTAR_FIT_AUTO, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_image_file_fit(anistar_context *ctx,
+                                                               const char *path, double iso,
+                                                               int inside, int fit,
+                                                               anistar_surface **out) {
     if (!ctx) return ANISTAR_EINVAL;
     if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image_file: NULL out");
     *out = NULL;
@@ -735,7 +742,11 @@ ANISTAR_API anistar_status anistar_surface_from_image_file(anistar_context *ctx,
                        "anistar_surface_from_image_file: inside must be ANISTAR_INSIDE_GREATER "
                        "(1) or ANISTAR_INSIDE_LESS (-1), got %d",
                        inside);
-    return as_image_surface_read(ctx, path, iso, inside, out);
+    return as_image_surface_read_fit(ctx, path, iso, inside, fit, out);
+}
+
+ANISTAR_API int anistar_surface_image_fit(const anistar_surface *s) {
+    return as_image_surface_fit(s, NULL);
 }
 
 ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
@@ -744,12 +755,24 @@ ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,
                                                       const double spacing[3],
                                                       const double origin[3], double iso,
                                                       int inside, anistar_surface **out) {
+    return anistar_surface_from_image_fit(ctx, voxels, dims, spacing, origin, iso, inside,
+                                          ANISTAR_FIT_AUTO, out);
+}
+
+ANISTAR_API anistar_status anistar_surface_from_image_fit(anistar_context *ctx,
+                                                          const double *voxels,
+                                                          const size_t dims[3],
+                                                          const double spacing[3],
+                                                          const double origin[3], double iso,
+                                                          int inside, int fit,
+                                                          anistar_surface **out) {
     if (!ctx) return ANISTAR_EINVAL;
     if (!out) return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image: NULL out");
     *out = NULL;
     if (!voxels || !dims)
         return as_fail(ctx, ANISTAR_EINVAL, "anistar_surface_from_image: NULL voxels or dims");
-    return as_image_surface_from_array(ctx, voxels, dims, spacing, origin, iso, inside, out);
+    return as_image_surface_from_array_fit(ctx, voxels, dims, spacing, origin, iso, inside, fit,
+                                           out);
 }
 
 ANISTAR_API anistar_status anistar_image_file_otsu(anistar_context *ctx, const char *path,
@@ -971,3 +994,8 @@ ANISTAR_API anistar_status anistar_image_file_info(anistar_context *ctx, const c
     as_image_free(ctx, img);
     return s;
 }
+
+_Static_assert(ANISTAR_FIT_AUTO == AS_IMAGE_FIT_AUTO &&
+                   ANISTAR_FIT_INTERPOLATE == AS_IMAGE_FIT_INTERPOLATE &&
+                   ANISTAR_FIT_SMOOTH == AS_IMAGE_FIT_SMOOTH,
+               "the public fits are the image surface's");

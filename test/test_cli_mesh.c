@@ -222,12 +222,14 @@ static void test_usage_errors(void **state) {
         {S, "--metric", "bogus", "-o", "/tmp/x.off", NULL},
         {S, "--r0", NULL},
         {S, "--aniso-cap", "2", "-o", "/tmp/x.off", NULL},
+        {S, "--fit", "smooth", "-o", "/tmp/x.off", NULL}, /* --fit without an image */
+        {"mesh", AS_TEST_DATA_DIR "/skull_2.9.inr", "--fit", "spline", "-o", "/tmp/x.off", NULL},
     };
 #undef S
     const char *msgs[] = {"unknown option", "-o",       "--r0",     "--r0",     "--gamma0",
                           "--rho0",         "--delta",  "--delta",  "--beta",
                           "extension",      "--max-vertices",       "--metric", "needs a value",
-                          "--aniso-cap"};
+                          "--aniso-cap",    "--fit goes with an image", "--fit expects"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         run(cases[i], r);

@@ -463,8 +463,8 @@ static void test_brain(void **state) {
         int met = check_closed(ctx, s, 2.0, &r, 25);
         assert_true(met >= 5);
         /* the head crosses the first and last z slices: voxels above iso there, and the
-         * surface closes within the fade beyond the border (bspline.h: AS_BSPLINE_PAD
-         * voxels) */
+         * surface closes within the fade beyond the border (bspline.h: AS_BSPLINE_FADE
+         * voxels, the background from FADE + 1 = PAD on) */
         size_t nx = img->nx, ny = img->ny, nz = img->nz, border = 0;
         for (int end = 0; end < 2; end++) {
             size_t kz = end ? nz - 1 : 0;
@@ -489,7 +489,7 @@ static void test_brain(void **state) {
                     assert_true(found);
                     as_grid_world_to_voxel(&img->grid, x, vx);
                     double beyond = end ? vx[2] - (double)(nz - 1) : -vx[2];
-                    assert_true(beyond > 0 && beyond < AS_BSPLINE_PAD + 1);
+                    assert_true(beyond > 0 && beyond < AS_BSPLINE_PAD);
                     border++;
                 }
         }
@@ -608,6 +608,53 @@ static void test_ball_at_border(void **state) {
     anistar_mesher_free(me);
     anistar_metric_free(m);
     anistar_surface_free(s);
+    free(vox);
+    anistar_context_free(ctx);
+}
+
+/* The fit (bspline.h): automatic is smoothing for at most 16 distinct voxel values (a
+ * mask, labels) and interpolating otherwise; an explicit fit is kept; a bad one refused;
+ * a surface that is not an image has none. */
+static void test_fit_choice(void **state) {
+    (void)state;
+    anistar_context *ctx = anistar_context_new(NULL);
+    size_t dims[3] = {12, 12, 12}, n = 12 * 12 * 12;
+    double *vox = malloc(n * sizeof *vox);
+    assert_non_null(vox);
+    static const int nlevels[] = {2, 16, 40};
+    for (size_t l = 0; l < sizeof nlevels / sizeof nlevels[0]; l++) {
+        /* a ball quantised to `levels` values: 2 (a mask), 16, 40 */
+        const int levels = nlevels[l];
+        for (size_t i = 0; i < n; i++) {
+            double x = (double)(i % 12) - 5.5, y = (double)(i / 12 % 12) - 5.5,
+                   z = (double)(i / 144) - 5.5;
+            double r = sqrt(x * x + y * y + z * z) / 9.6; /* [0, 1) */
+            vox[i] = floor((1 - r) * levels);
+            if (levels == 2) vox[i] = r < 0.5 ? 1 : 0;
+        }
+        anistar_surface *s;
+        double iso = levels == 2 ? 0.5 : 0.5 * levels;
+        assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, iso, 1, &s),
+                         ANISTAR_OK);
+        assert_int_equal(anistar_surface_image_fit(s),
+                         levels <= 16 ? ANISTAR_FIT_SMOOTH : ANISTAR_FIT_INTERPOLATE);
+        anistar_surface_free(s);
+        for (int fit = ANISTAR_FIT_INTERPOLATE; fit <= ANISTAR_FIT_SMOOTH; fit++) {
+            assert_int_equal(
+                anistar_surface_from_image_fit(ctx, vox, dims, NULL, NULL, iso, 1, fit, &s),
+                ANISTAR_OK);
+            assert_int_equal(anistar_surface_image_fit(s), fit);
+            anistar_surface_free(s);
+        }
+    }
+    anistar_surface *s = (anistar_surface *)1;
+    assert_int_equal(anistar_surface_from_image_fit(ctx, vox, dims, NULL, NULL, 0.5, 1, 3, &s),
+                     ANISTAR_EINVAL);
+    assert_null(s);
+    assert_int_equal(anistar_surface_builtin(ctx, "sphere", &s), ANISTAR_OK);
+    assert_int_equal(anistar_surface_image_fit(s), ANISTAR_FIT_AUTO);
+    anistar_surface_free(s);
+    assert_int_equal(anistar_surface_image_fit(NULL), ANISTAR_FIT_AUTO);
     free(vox);
     anistar_context_free(ctx);
 }
@@ -808,7 +855,7 @@ int main(void) {
         cmocka_unit_test(test_brain),          cmocka_unit_test(test_errors_and_api),
         cmocka_unit_test(test_alloc_failures), cmocka_unit_test(test_otsu),
         cmocka_unit_test(test_lattice_and_blend), cmocka_unit_test(test_crossing_order),
-        cmocka_unit_test(test_ball_at_border),
+        cmocka_unit_test(test_ball_at_border), cmocka_unit_test(test_fit_choice),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -28,12 +28,14 @@
 struct as_bspline {
     as_grid grid;        /* the padded grid: AS_BSPLINE_PAD voxels more on every side */
     as_grid image;       /* the image's own grid (as_bspline_grid) */
+    int fit;             /* AS_BSPLINE_INTERPOLATE or AS_BSPLINE_SMOOTH */
     ptrdiff_t n[3];      /* padded voxels per axis */
     ptrdiff_t stride[3]; /* 1, nx, nx*ny (padded) */
     double *coef;        /* nx*ny*nz coefficients of (padded data - background), x fastest */
     size_t coef_bytes;
     double background;
     double coef_max;
+    double shell[3][AS_BSPLINE_PAD + 1]; /* as_bspline_margin: max |c| k+ voxels outside */
     double zpow[AS_BSPLINE_REACH + 4]; /* z^d, d = 0 .. REACH+3 */
 };
 
@@ -74,12 +76,12 @@ static void as_prefilter_axis(double *c, size_t n, size_t step, size_t width) {
 }
 
 /* The fade of the extension at d voxels outside the image (0 <= d): 1 at the border, 0
- * from AS_BSPLINE_PAD + 1 on, 1 - smoothstep in between (the quintic 6t^5 - 15t^4 + 10t^3
- * of t = d / (PAD + 1): C2 where it meets 1 and 0). */
+ * from AS_BSPLINE_FADE + 1 on, 1 - smoothstep in between (the quintic 6t^5 - 15t^4 +
+ * 10t^3 of t = d / (FADE + 1): C2 where it meets 1 and 0). */
 static double as_fade(ptrdiff_t d) {
     if (d <= 0) return 1.0;
-    if (d > AS_BSPLINE_PAD) return 0.0;
-    double t = (double)d / (AS_BSPLINE_PAD + 1);
+    if (d > AS_BSPLINE_FADE) return 0.0;
+    double t = (double)d / (AS_BSPLINE_FADE + 1);
     return 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
@@ -91,7 +93,14 @@ static ptrdiff_t as_outside(ptrdiff_t I, ptrdiff_t n) {
 
 anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, double background,
                                  as_bspline **out) {
+    return as_bspline_create_fit(ctx, img, background, AS_BSPLINE_INTERPOLATE, out);
+}
+
+anistar_status as_bspline_create_fit(anistar_context *ctx, const as_image *img,
+                                     double background, int fit, as_bspline **out) {
     *out = NULL;
+    if (fit != AS_BSPLINE_INTERPOLATE && fit != AS_BSPLINE_SMOOTH)
+        return as_fail(ctx, ANISTAR_EINVAL, "B-spline: unknown fit %d", fit);
     if (!img || !img->data) return as_fail(ctx, ANISTAR_EINVAL, "B-spline: NULL image");
     if (!isfinite(background))
         return as_fail(ctx, ANISTAR_EINVAL, "B-spline: background value %g is not finite",
@@ -102,6 +111,8 @@ anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, doub
                        "B-spline: image has %zu non-finite voxels (NaN or infinite), the first "
                        "at index %zu",
                        bad, first);
+    /* the fade's voxels and one of background (data 0 after subtracting b), so that both
+     * fits continue beyond the stored grid as bspline.h says */
     const size_t nx = img->nx, ny = img->ny, nz = img->nz, P = AS_BSPLINE_PAD;
     const size_t Nx = nx + 2 * P, Ny = ny + 2 * P, Nz = nz + 2 * P;
     size_t count, bytes;
@@ -127,6 +138,7 @@ anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, doub
                        bytes);
     }
     bs->coef_bytes = bytes;
+    bs->fit = fit;
     bs->image = img->grid;
     /* the padded grid: the same axes, the origin PAD voxels back along each */
     bs->grid = img->grid;
@@ -148,8 +160,8 @@ anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, doub
     /* design: the data beyond the image fades from the border voxels to the background
      * over PAD voxels (as_fade per axis, multiplied), then the padded rows are filtered
      * as before; see bspline.h for why a step to the background is not used */
-    double *c = bs->coef, fx[2 * AS_BSPLINE_PAD + 1];
-    for (size_t d = 0; d <= 2 * P; d++) fx[d] = as_fade((ptrdiff_t)d);
+    double *c = bs->coef, fx[AS_BSPLINE_PAD + 1];
+    for (size_t d = 0; d <= P; d++) fx[d] = as_fade((ptrdiff_t)d);
     for (size_t K = 0; K < Nz; K++)
         for (size_t J = 0; J < Ny; J++) {
             double *row = c + (K * Ny + J) * Nx;
@@ -167,18 +179,45 @@ anistar_status as_bspline_create(anistar_context *ctx, const as_image *img, doub
                 row[P - d] = row[P] * fx[d];
                 row[P + nx - 1 + d] = row[P + nx - 1] * fx[d];
             }
-            as_prefilter_row(row, Nx);
+            if (fit == AS_BSPLINE_INTERPOLATE) as_prefilter_row(row, Nx);
         }
     as_free(ctx, rowbuf, nx * sizeof(double));
-    for (size_t K = 0; K < Nz; K++) as_prefilter_axis(c + K * Nx * Ny, Ny, Nx, Nx);
-    as_prefilter_axis(c, Nz, Nx * Ny, Nx * Ny);
+    if (fit == AS_BSPLINE_INTERPOLATE) {
+        for (size_t K = 0; K < Nz; K++) as_prefilter_axis(c + K * Nx * Ny, Ny, Nx, Nx);
+        as_prefilter_axis(c, Nz, Nx * Ny, Nx * Ny);
+    }
 
+    /* the largest |c| per layer along each axis (the margin's shells), and overall */
+    double lm[3][AS_BSPLINE_PAD + 1];
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k <= AS_BSPLINE_PAD; k++) lm[a][k] = 0;
     double m = 0;
     int finite = 1;
-    for (size_t i = 0; i < count; i++) {
-        double a = fabs(c[i]);
-        if (!(a <= DBL_MAX)) finite = 0;
-        if (a > m) m = a;
+    for (size_t K = 0; K < Nz; K++) {
+        const ptrdiff_t dz = as_outside((ptrdiff_t)K, (ptrdiff_t)nz);
+        for (size_t J = 0; J < Ny; J++) {
+            const ptrdiff_t dy = as_outside((ptrdiff_t)J, (ptrdiff_t)ny);
+            const double *row = c + (K * Ny + J) * Nx;
+            double rm = 0;
+            for (size_t I = 0; I < Nx; I++) {
+                double a = fabs(row[I]);
+                if (!(a <= DBL_MAX)) finite = 0;
+                if (a > rm) rm = a;
+                ptrdiff_t dx = as_outside((ptrdiff_t)I, (ptrdiff_t)nx);
+                if (a > lm[0][dx]) lm[0][dx] = a;
+            }
+            if (rm > lm[1][dy]) lm[1][dy] = rm;
+            if (rm > lm[2][dz]) lm[2][dz] = rm;
+            if (rm > m) m = rm;
+        }
+    }
+    /* shell[a][k]: max |c| over the coefficients k or more voxels outside along axis a */
+    for (int a = 0; a < 3; a++) {
+        double run = 0;
+        for (int k = AS_BSPLINE_PAD; k >= 0; k--) {
+            if (lm[a][k] > run) run = lm[a][k];
+            bs->shell[a][k] = run;
+        }
     }
     if (!finite) {
         as_bspline_free(ctx, bs);
@@ -199,6 +238,7 @@ void as_bspline_free(anistar_context *ctx, as_bspline *bs) {
 }
 
 const as_grid *as_bspline_grid(const as_bspline *bs) { return &bs->image; }
+int as_bspline_fit(const as_bspline *bs) { return bs->fit; }
 double as_bspline_background(const as_bspline *bs) { return bs->background; }
 double as_bspline_coef_max(const as_bspline *bs) { return bs->coef_max; }
 
@@ -206,10 +246,23 @@ double as_bspline_margin(const as_bspline *bs, double level) {
     double gap = fabs(level - bs->background);
     if (!(gap > 0)) return AS_BSPLINE_PAD + AS_BSPLINE_REACH;
     if (bs->coef_max == 0) return 0;
-    double d = 2.0 + log(gap / bs->coef_max) / log(-AS_BSPLINE_POLE);
-    if (!(d > 0)) return AS_BSPLINE_PAD;
-    d = ceil(d);
-    return AS_BSPLINE_PAD + (d < AS_BSPLINE_REACH ? d : AS_BSPLINE_REACH);
+    /* design: a point more than m voxels outside along axis a reads coefficients m - 1 or
+     * more voxels outside along a; |f - b| is at most their largest |c| (the weights are
+     * >= 0 and sum to 1 per axis), within the stored grid shell[a][m - 1], beyond it the
+     * last layer's shrunk by |z| per voxel. m_a: the first m with that bound below the
+     * gap; the margin is the largest over the axes */
+    int margin = 0;
+    for (int a = 0; a < 3; a++) {
+        int k = 0;
+        double bound = bs->shell[a][0];
+        while (!(bound < gap) && k < AS_BSPLINE_PAD + AS_BSPLINE_REACH) {
+            k++;
+            bound = k <= AS_BSPLINE_PAD ? bs->shell[a][k] : bound * -AS_BSPLINE_POLE;
+        }
+        int ma = k + 1 < AS_BSPLINE_PAD + AS_BSPLINE_REACH ? k + 1 : AS_BSPLINE_PAD + AS_BSPLINE_REACH;
+        if (ma > margin) margin = ma;
+    }
+    return margin;
 }
 
 /* ---- evaluation --------------------------------------------------------------------- */
@@ -403,13 +456,15 @@ BS_INLINE double as_eval_voxel(const as_bspline *bs, const double v[3], int orde
 }
 
 double as_bspline_value_voxel(const as_bspline *bs, const double v[3]) {
-    const double w[3] = {v[0] + AS_BSPLINE_PAD, v[1] + AS_BSPLINE_PAD, v[2] + AS_BSPLINE_PAD};
+    const double o = AS_BSPLINE_PAD;
+    const double w[3] = {v[0] + o, v[1] + o, v[2] + o};
     return as_value_padded(bs, w);
 }
 
 double as_bspline_value_grad_hess_voxel(const as_bspline *bs, const double v[3], double g[3],
                                         double h[6]) {
-    const double w[3] = {v[0] + AS_BSPLINE_PAD, v[1] + AS_BSPLINE_PAD, v[2] + AS_BSPLINE_PAD};
+    const double o = AS_BSPLINE_PAD;
+    const double w[3] = {v[0] + o, v[1] + o, v[2] + o};
     return as_eval_voxel(bs, w, 2, g, h);
 }
 

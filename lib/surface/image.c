@@ -27,6 +27,8 @@ typedef struct as_image_surface {
     as_bspline *bs;
     double iso;
     double sign; /* f = sign * (iso - value) */
+    int fit;     /* AS_IMAGE_FIT_INTERPOLATE or _SMOOTH: the one used */
+    int nvalues; /* distinct voxel values, counted up to AS_IMAGE_LABELS_MAX + 1 */
 } as_image_surface;
 
 static double im_eval(const as_surface *s, const double p[3], int order, double g[3],
@@ -58,12 +60,49 @@ static const as_surface_ops image_ops = {"image", im_eval, NULL, NULL, NULL, NUL
 
 int as_surface_is_image(const as_surface *s) { return s && s->ops == &image_ops; }
 
+int as_image_surface_fit(const as_surface *s, int *nvalues) {
+    if (!as_surface_is_image(s)) return AS_IMAGE_FIT_AUTO;
+    const as_image_surface *is = (const as_image_surface *)s;
+    if (nvalues) *nvalues = is->nvalues;
+    return is->fit;
+}
+
+/* The distinct values of img's voxels, counted up to AS_IMAGE_LABELS_MAX + 1. */
+static int count_values(const struct as_image *img) {
+    double seen[AS_IMAGE_LABELS_MAX + 1];
+    int n = 0;
+    double buf[256];
+    for (size_t first = 0; first < img->count; first += 256) {
+        size_t m = img->count - first < 256 ? img->count - first : 256;
+        as_image_to_double(img, first, m, buf);
+        for (size_t i = 0; i < m; i++) {
+            int k = 0;
+            while (k < n && !(seen[k] == buf[i])) k++;
+            if (k < n) continue;
+            if (n == AS_IMAGE_LABELS_MAX + 1) return n;
+            seen[n++] = buf[i];
+        }
+    }
+    return n;
+}
+
 anistar_status as_image_surface_create(anistar_context *ctx, const char *name,
                                        const struct as_image *img, double iso, int inside,
                                        as_surface **out) {
+    return as_image_surface_create_fit(ctx, name, img, iso, inside, AS_IMAGE_FIT_AUTO, out);
+}
+
+anistar_status as_image_surface_create_fit(anistar_context *ctx, const char *name,
+                                           const struct as_image *img, double iso, int inside,
+                                           int fit, as_surface **out) {
     *out = NULL;
     if (!name) name = "image";
     if (!img) return as_fail(ctx, ANISTAR_EINVAL, "%s: NULL image", name);
+    if (fit != AS_IMAGE_FIT_AUTO && fit != AS_IMAGE_FIT_INTERPOLATE && fit != AS_IMAGE_FIT_SMOOTH)
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "%s: the fit must be automatic (0), interpolating (1) or smoothing (2), "
+                       "got %d",
+                       name, fit);
     if (inside != 1 && inside != -1)
         return as_fail(ctx, ANISTAR_EINVAL,
                        "%s: inside must be +1 (values greater than iso) or -1 (less), got %d",
@@ -82,7 +121,16 @@ anistar_status as_image_surface_create(anistar_context *ctx, const char *name,
     memset(is, 0, sizeof *is);
     is->iso = iso;
     is->sign = inside > 0 ? 1.0 : -1.0;
-    anistar_status st = as_bspline_create(ctx, img, inside > 0 ? lo : hi, &is->bs);
+    /* design: a label image or mask (few distinct values: every step is a jump between
+     * labels) gets the smoothing fit, any other the interpolating one (bspline.h) */
+    is->nvalues = count_values(img);
+    if (fit == AS_IMAGE_FIT_AUTO)
+        fit = is->nvalues <= AS_IMAGE_LABELS_MAX ? AS_IMAGE_FIT_SMOOTH : AS_IMAGE_FIT_INTERPOLATE;
+    is->fit = fit;
+    anistar_status st =
+        as_bspline_create_fit(ctx, img, inside > 0 ? lo : hi,
+                              fit == AS_IMAGE_FIT_SMOOTH ? AS_BSPLINE_SMOOTH : AS_BSPLINE_INTERPOLATE,
+                              &is->bs);
     if (st) {
         as_free(ctx, is, sizeof *is);
         return st;
@@ -101,11 +149,16 @@ anistar_status as_image_surface_create(anistar_context *ctx, const char *name,
 
 anistar_status as_image_surface_read(anistar_context *ctx, const char *path, double iso,
                                      int inside, as_surface **out) {
+    return as_image_surface_read_fit(ctx, path, iso, inside, AS_IMAGE_FIT_AUTO, out);
+}
+
+anistar_status as_image_surface_read_fit(anistar_context *ctx, const char *path, double iso,
+                                         int inside, int fit, as_surface **out) {
     *out = NULL;
     as_image *img = NULL;
     anistar_status st = as_image_read(ctx, path, &img);
     if (st) return st;
-    st = as_image_surface_create(ctx, path, img, iso, inside, out);
+    st = as_image_surface_create_fit(ctx, path, img, iso, inside, fit, out);
     as_image_free(ctx, img);
     return st;
 }
@@ -114,6 +167,14 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
                                            const size_t dims[3], const double spacing[3],
                                            const double origin[3], double iso, int inside,
                                            as_surface **out) {
+    return as_image_surface_from_array_fit(ctx, voxels, dims, spacing, origin, iso, inside,
+                                           AS_IMAGE_FIT_AUTO, out);
+}
+
+anistar_status as_image_surface_from_array_fit(anistar_context *ctx, const double *voxels,
+                                               const size_t dims[3], const double spacing[3],
+                                               const double origin[3], double iso, int inside,
+                                               int fit, as_surface **out) {
     *out = NULL;
     if (!voxels || !dims)
         return as_fail(ctx, ANISTAR_EINVAL, "image surface: NULL voxels or dimensions");
@@ -130,14 +191,14 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
                          "image surface: %zu voxels are not finite, the first at index %zu",
                          bad, first);
     }
-    if (!st) st = as_image_surface_create(ctx, "image", img, iso, inside, out);
+    if (!st) st = as_image_surface_create_fit(ctx, "image", img, iso, inside, fit, out);
     as_image_free(ctx, img);
     return st;
 }
 
 /* as_image_surface_lattice (surface.h). design: f at the lattice nodes, two z-layers at a
- * time (the nodes of layer z and z + 1, (nx + 10)(ny + 10) values each: the image grid and PAD + 1 nodes more on every side), so memory stays
- * O(nx ny) whatever the image; an edge whose ends have opposite signs (f >= 0 against
+ * time (the nodes of layer z and z + 1: the image grid's and PAD + 1 more on every side,
+ * (nx + 12)(ny + 12) values each), so memory stays O(nx ny) whatever the image; an edge whose ends have opposite signs (f >= 0 against
  * f < 0, the sign convention of the sampler) holds a crossing, solved by
  * as_surface_crossing between its ends. The points grow in a doubling array. */
 anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *s, double **xyz,

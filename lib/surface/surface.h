@@ -439,6 +439,25 @@ anistar_status as_image_surface_from_array(anistar_context *ctx, const double *v
                                            const size_t dims[3], const double spacing[3],
                                            const double origin[3], double iso, int inside,
                                            as_surface **out);
+/* The same with the B-spline's fit chosen: AS_IMAGE_FIT_AUTO (what the functions above
+ * use: SMOOTH for an image of at most AS_IMAGE_LABELS_MAX distinct voxel values, a label
+ * image or a mask; INTERPOLATE for any other), INTERPOLATE or SMOOTH (surface/bspline.h;
+ * the values are the public ANISTAR_FIT_*). EINVAL for another fit. */
+enum { AS_IMAGE_FIT_AUTO = 0, AS_IMAGE_FIT_INTERPOLATE = 1, AS_IMAGE_FIT_SMOOTH = 2 };
+#define AS_IMAGE_LABELS_MAX 16
+anistar_status as_image_surface_create_fit(anistar_context *ctx, const char *name,
+                                           const struct as_image *img, double iso, int inside,
+                                           int fit, as_surface **out);
+anistar_status as_image_surface_read_fit(anistar_context *ctx, const char *path, double iso,
+                                         int inside, int fit, as_surface **out);
+anistar_status as_image_surface_from_array_fit(anistar_context *ctx, const double *voxels,
+                                               const size_t dims[3], const double spacing[3],
+                                               const double origin[3], double iso, int inside,
+                                               int fit, as_surface **out);
+/* The fit an image surface uses (INTERPOLATE or SMOOTH; AUTO when s is not an image) and,
+ * when nvalues is not NULL, its distinct voxel values counted up to AS_IMAGE_LABELS_MAX
+ * + 1. */
+int as_image_surface_fit(const as_surface *s, int *nvalues);
 /* 1 iff s is an image surface. */
 int as_surface_is_image(const as_surface *s);
 /*

@@ -11,8 +11,9 @@
 typedef struct dcase {
     const char *file;
     int image;
-    long long chi; /* meshes: the input's Euler characteristic (test/data/README.md) */
-    size_t comps;
+    long long chi; /* meshes: the input's Euler characteristic (test/data/README.md);
+                      images: checked with comps when comps > 0 */
+    size_t comps;  /* meshes: the input's components; images: 0 = not checked */
     int must; /* must end certified; otherwise bounded by DC_MAX_SECONDS */
 } dcase;
 

@@ -74,6 +74,7 @@ typedef struct surface_opts {
     int inside; /* --inside greater|less (images): ANISTAR_INSIDE_GREATER / _LESS, 0 unset */
     int fit;    /* --fit auto|interpolate|smooth (images): ANISTAR_FIT_*, -1 unset */
     int fit_used; /* images: the fit the surface uses (anistar_surface_image_fit) */
+    int quiet;    /* --quiet: no note of the automatic fit */
 } surface_opts;
 
 /* What a SURFACE FILE is, by its extension (case-insensitive). */
@@ -241,7 +242,8 @@ static int surface_make(anistar_context *ctx, surface_opts *so, anistar_surface 
                 ctx, so->file, so->iso, so->inside ? so->inside : ANISTAR_INSIDE_GREATER,
                 so->fit >= 0 ? so->fit : ANISTAR_FIT_AUTO, s);
             if (st == ANISTAR_OK) so->fit_used = anistar_surface_image_fit(*s);
-            if (st == ANISTAR_OK && so->fit < 0 && so->fit_used == ANISTAR_FIT_SMOOTH)
+            if (st == ANISTAR_OK && so->fit < 0 && so->fit_used == ANISTAR_FIT_SMOOTH &&
+                !so->quiet)
                 fprintf(stderr,
                         "anistar: %s: at most 16 distinct voxel values (labels or a mask): the "
                         "smoothing B-spline (--fit interpolate for the interpolating one)\n",
@@ -1190,6 +1192,7 @@ static int cmd_mesh(int argc, char **argv) {
         rc = EXIT_ERROR;
         goto done;
     }
+    so.quiet = quiet;
     rc = surface_make(ctx, &so, &s);
     if (rc) goto done;
     if (anistar_metric_from_spec(ctx, s, metric, &m) || anistar_mesher_new(ctx, s, m, &mr)) {

@@ -534,6 +534,30 @@ static int exact_otsu(const double *count, int nvals, double *best_var, int at_j
     return bj;
 }
 
+/* Mesh the voxels (x fastest, spacing 1, origin 0, inside greater than iso, the automatic
+ * fit) with `metric` (r0 given when > 0) on one thread: OK expected; the mesh, its
+ * statistics in *S. */
+static anistar_mesh *mesh_voxels(anistar_context *ctx, const double *vox, size_t dims[3],
+                                 double iso, const char *metric, double r0,
+                                 anistar_mesh_stats *S) {
+    anistar_surface *s;
+    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, iso, 1, &s),
+                     ANISTAR_OK);
+    anistar_metric *m;
+    assert_int_equal(anistar_metric_from_spec(ctx, s, metric, &m), ANISTAR_OK);
+    anistar_mesher *me;
+    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
+    if (r0 > 0) assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, r0), ANISTAR_OK);
+    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_THREADS, 1), ANISTAR_OK);
+    anistar_mesh *mesh;
+    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+    anistar_mesh_get_stats(mesh, S);
+    anistar_mesher_free(me);
+    anistar_metric_free(m);
+    anistar_surface_free(s);
+    return mesh;
+}
+
 /* An object near the image's border: a ball of radius 22 (voxel values 22 - distance from
  * the center, float) in a 40^3 grid, centred, so the border voxels lie 2.5 below 0 at the
  * faces' centres and -11.8 at the corners (the background). At Otsu's threshold (3.78)
@@ -576,19 +600,8 @@ static void test_ball_at_border(void **state) {
         assert_true(value < iso);
     }
     as_surface_free(is);
-    anistar_surface *s;
-    assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, iso, 1, &s),
-                     ANISTAR_OK);
-    anistar_metric *m;
-    assert_int_equal(anistar_metric_from_spec(ctx, s, "euclidean", &m), ANISTAR_OK);
-    anistar_mesher *me;
-    assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_R0, 3), ANISTAR_OK);
-    assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_THREADS, 1), ANISTAR_OK);
-    anistar_mesh *mesh;
-    assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
     anistar_mesh_stats S;
-    anistar_mesh_get_stats(mesh, &S);
+    anistar_mesh *mesh = mesh_voxels(ctx, vox, dims, iso, "euclidean", 3, &S);
     assert_int_equal(S.components, 1);
     assert_int_equal(S.euler_characteristic, 2);
     /* every vertex on the sphere of radius rho (the reconstruction of a distance field is
@@ -605,9 +618,6 @@ static void test_ball_at_border(void **state) {
     }
     free(xyz);
     anistar_mesh_free(mesh);
-    anistar_mesher_free(me);
-    anistar_metric_free(m);
-    anistar_surface_free(s);
     free(vox);
     anistar_context_free(ctx);
 }
@@ -685,22 +695,12 @@ static void test_label_image(void **state) {
         assert_int_equal(anistar_surface_from_image(ctx, vox, dims, NULL, NULL, isos[t], 1, &s),
                          ANISTAR_OK);
         assert_int_equal(anistar_surface_image_fit(s), ANISTAR_FIT_SMOOTH);
-        anistar_metric *m;
-        assert_int_equal(anistar_metric_from_spec(ctx, s, "curvature", &m), ANISTAR_OK);
-        anistar_mesher *me;
-        assert_int_equal(anistar_mesher_new(ctx, s, m, &me), ANISTAR_OK);
-        assert_int_equal(anistar_mesher_set(me, ANISTAR_PARAM_THREADS, 1), ANISTAR_OK);
-        anistar_mesh *mesh;
-        assert_int_equal(anistar_mesher_run(me, &mesh), ANISTAR_OK);
+        anistar_surface_free(s);
         anistar_mesh_stats S;
-        anistar_mesh_get_stats(mesh, &S);
+        anistar_mesh_free(mesh_voxels(ctx, vox, dims, isos[t], "curvature", 0, &S));
         if (S.components != 1 || S.euler_characteristic != 2)
             fail_msg("iso %g: %zu components, chi %lld", isos[t], S.components,
                      S.euler_characteristic);
-        anistar_mesh_free(mesh);
-        anistar_mesher_free(me);
-        anistar_metric_free(m);
-        anistar_surface_free(s);
     }
     free(vox);
     anistar_context_free(ctx);

@@ -521,7 +521,7 @@ static void test_border_surface_closes(void **state) {
                 assert_true(as_bspline_value(bs, p) - 0.5 > 0);
             }
     double m = as_bspline_margin(bs, 0.5);
-    fprintf(stderr, "margin of the ones at 0.5: %g\n", m);
+    print_message("margin of the ones at 0.5: %g voxels\n", m);
     assert_true(m >= 1 && m <= AS_BSPLINE_PAD + 4);
     double cm[3], rm;
     as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
@@ -541,7 +541,7 @@ static void test_border_surface_closes(void **state) {
         top_inside = fmax(top_inside, as_image_value(img, 61 * 128 * 128 + i));
     assert_true(top_inside > 40);
     m = as_bspline_margin(bs, 40);
-    fprintf(stderr, "margin of the brain at 40: %g\n", m);
+    print_message("margin of the brain at 40: %g voxels\n", m);
     assert_true(m >= 1 && m < AS_BSPLINE_PAD + AS_BSPLINE_REACH);
     as_grid_bounding_sphere(as_bspline_grid(bs), m, cm, &rm);
     assert_true(max_on_sphere(bs, cm, rm, 4000, &rng) < 40);

@@ -85,6 +85,12 @@ static double as_fade(ptrdiff_t d) {
     return 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
+/* The image index nearest padded index I (image index I - PAD, clamped to [0, n-1]). */
+static size_t as_clamp_index(size_t I, size_t n) {
+    if (I < AS_BSPLINE_PAD) return 0;
+    return I - AS_BSPLINE_PAD > n - 1 ? n - 1 : I - AS_BSPLINE_PAD;
+}
+
 /* The distance outside [0, n-1] of padded index I (image index I - PAD). */
 static ptrdiff_t as_outside(ptrdiff_t I, ptrdiff_t n) {
     ptrdiff_t i = I - AS_BSPLINE_PAD;
@@ -158,8 +164,8 @@ anistar_status as_bspline_create_fit(anistar_context *ctx, const as_image *img,
     for (int d = 1; d < AS_BSPLINE_REACH + 4; d++) bs->zpow[d] = bs->zpow[d - 1] * AS_BSPLINE_POLE;
 
     /* design: the data beyond the image fades from the border voxels to the background
-     * over PAD voxels (as_fade per axis, multiplied), then the padded rows are filtered
-     * as before; see bspline.h for why a step to the background is not used */
+     * over FADE voxels (as_fade per axis, multiplied), then the padded rows are filtered
+     * as before (the interpolating fit); see bspline.h for why not a step to b */
     double *c = bs->coef, fx[AS_BSPLINE_PAD + 1];
     for (size_t d = 0; d <= P; d++) fx[d] = as_fade((ptrdiff_t)d);
     for (size_t K = 0; K < Nz; K++)
@@ -171,8 +177,7 @@ anistar_status as_bspline_create_fit(anistar_context *ctx, const as_image *img,
                 memset(row, 0, Nx * sizeof *row);
                 continue;
             }
-            size_t j = (size_t)((ptrdiff_t)J - (ptrdiff_t)P < 0 ? 0 : J - P > ny - 1 ? ny - 1 : J - P);
-            size_t k = (size_t)((ptrdiff_t)K - (ptrdiff_t)P < 0 ? 0 : K - P > nz - 1 ? nz - 1 : K - P);
+            size_t j = as_clamp_index(J, ny), k = as_clamp_index(K, nz);
             as_image_to_double(img, (k * ny + j) * nx, nx, rowbuf);
             for (size_t i = 0; i < nx; i++) row[P + i] = (rowbuf[i] - background) * wyz;
             for (size_t d = 1; d <= P; d++) {

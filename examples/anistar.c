@@ -1369,7 +1369,8 @@ static void help(void) {
            "  sizes grow by at most about 1 + l ln G over metric length l; for fields that\n"
            "  jump, e.g. the curvature of surfaces joined with continuous tangents only;\n"
            "  default 1.5 for curvature and sol on triangle meshes and curvature on\n"
-           "  images, else none; grad=0: none);\n"
+           "  images and on expressions with abs, min or max (creases), else none;\n"
+           "  grad=0: none);\n"
            "  curvature on meshes also takes degree=2|3|4, k=K (neighbours), rb=R\n"
            "  (blending); on images rb=R\n\n"
            "built-in surfaces:\n");

@@ -465,7 +465,8 @@ typedef int (*anistar_metric_fn)(const double p[3], const double normal[3], doub
  * MMG's hgrad): sizes grow by at most about 1 + l ln G over metric length l, so a field
  * that jumps (jets across a CAD crease, a .sol, the curvature of a surface whose pieces
  * meet with continuous tangents only) becomes one the refinement can finish on. The
- * fields from data (curvature and sol on triangle meshes, curvature on images) are graded
+ * fields from data (curvature and sol on triangle meshes, curvature on images) and the
+ * curvature of an expression with abs, min or max (whose creases make it jump) are graded
  * with G = 1.5 unless the SPEC says otherwise; the others only when asked. Per-vertex and
  * lattice tensors are graded along the mesh's edges or the lattice points' nearest
  * neighbours (each tensor's eigenvalues raised in its own frame) before they are blended;

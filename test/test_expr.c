@@ -693,6 +693,20 @@ static void test_ties_and_kinks(void **state) {
     (void)state;
     anistar_context *ctx = new_ctx();
     double f, g[3], h[6];
+    /* as_expr_has_kinks: abs, min or max of something that varies; constants fold away */
+    static const struct {
+        const char *src;
+        int kinks;
+    } kk[] = {{"x^2+y^2+z^2-1", 0},       {"abs(x)+y", 1},          {"max(x,y)-z", 1},
+              {"min(x^2, y)", 1},         {"min(1, 2)*x + abs(-3)", 0}, {"sqrt(x^2+1)-y", 0},
+              {"a=abs(-2); a*x^2 - y", 0}};
+    for (size_t i = 0; i < sizeof kk / sizeof kk[0]; i++) {
+        as_expr *k = compile_ok(ctx, kk[i].src);
+        if (as_expr_has_kinks(k) != kk[i].kinks)
+            fail_msg("'%s': has_kinks %d", kk[i].src, as_expr_has_kinks(k));
+        as_expr_free(ctx, k);
+    }
+    assert_int_equal(as_expr_has_kinks(NULL), 0);
     /* abs at 0: the branch +u */
     as_expr *e = compile_ok(ctx, "abs(x*y - 1)");
     eval3(e, 1, 1, 0, &f, g, h);

@@ -888,7 +888,16 @@ static void test_gradation_analytic(void **state) {
     (void)state;
     anistar_context *ctx = anistar_context_new(NULL);
     as_surface *s = expression(ctx, "max(abs(x)-1,0)^2+y^2+z^2-0.25", 2);
-    as_field *g = field(ctx, s, "curvature,grad=1.3"), *u = field(ctx, s, "curvature");
+    as_field *g = field(ctx, s, "curvature,grad=1.3"), *u = field(ctx, s, "curvature,grad=0");
+    /* the default grades it (the expression has kinks: abs, max), a sphere's not */
+    as_field *d = field(ctx, s, "curvature");
+    assert_true(d->grad > 1);
+    as_field_free(d);
+    as_surface *sph = expression(ctx, "x^2+y^2+z^2-1", 2);
+    d = field(ctx, sph, "curvature");
+    assert_true(d->grad == 0);
+    as_field_free(d);
+    as_surface_free(sph);
     assert_non_null(g->g.blend);
     const double x0 = 1 - 1e-7, x1 = 1 + 1e-7;
     double a[6], b[6], ua[6], ub[6];

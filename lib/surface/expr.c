@@ -1366,6 +1366,15 @@ int as_expr_param_at(const as_expr *e, size_t i, const char **name, double *v) {
 
 int as_expr_uses_xyz(const as_expr *e) { return e ? e->uses : 0; }
 
+int as_expr_has_kinks(const as_expr *e) {
+    if (!e) return 0;
+    for (size_t i = 0; i < e->ncode; i++) {
+        int op = e->code[i].op;
+        if (op == OP_ABS || op == OP_MIN || op == OP_MAX) return 1;
+    }
+    return 0;
+}
+
 int as_expr_stack_depth(const as_expr *e) { return e ? e->max_stack : 0; }
 
 size_t as_expr_code_size(const as_expr *e) { return e ? e->ncode : 0; }

@@ -72,6 +72,10 @@ int as_expr_param_at(const as_expr *e, size_t i, const char **name, double *v);
 /* Which variables the compiled formula refers to: bit 0 x, bit 1 y, bit 2 z (0 for a
  * constant formula). A variable multiplied by 0 still counts. */
 int as_expr_uses_xyz(const as_expr *e);
+/* 1 iff the compiled code applies abs, min or max (to something that depends on x, y or
+ * z: constant subexpressions are folded at compile time): the function may have kinks,
+ * its derivatives jump there. */
+int as_expr_has_kinks(const as_expr *e);
 
 /* The number of evaluation stack slots the bytecode needs (1..AS_EXPR_MAX_STACK) and
  * its length in instructions (for tests and benchmarks). */

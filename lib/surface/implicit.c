@@ -138,6 +138,10 @@ static const as_surface_ops ex_ops = {"expression", ex_eval, NULL, NULL, NULL, N
 static const as_surface_ops bi_ops = {"builtin", bi_eval, NULL, NULL, NULL, NULL, NULL,
                                       im_destroy};
 
+int as_surface_has_kinks(const as_surface *s) {
+    return s && s->ops == &ex_ops && as_expr_has_kinks(((const as_implicit *)s)->expr);
+}
+
 static anistar_status im_new(anistar_context *ctx, const as_surface_ops *ops,
                              const double center[3], double radius, as_implicit **out) {
     *out = NULL;

@@ -379,6 +379,9 @@ anistar_status as_mesh_surface_create(anistar_context *ctx, const char *name, co
 anistar_status as_mesh_surface_read(anistar_context *ctx, const char *path, as_surface **out);
 /* 1 iff s is a triangle-mesh surface. */
 int as_surface_is_mesh(const as_surface *s);
+/* 1 iff s is an expression surface whose function may have kinks (abs, min, max:
+ * as_expr_has_kinks): S may have creases there, where its curvature jumps. */
+int as_surface_has_kinks(const as_surface *s);
 
 /* What a mesh surface holds (borrowed pointers, valid while the surface lives). */
 typedef struct as_mesh_info {

@@ -215,6 +215,14 @@ static int surface_check(const surface_opts *so) {
     return 0;
 }
 
+/* The advice appended to "no surface" when an image's smoothing fit was chosen for it:
+ * the smoothing blurs away parts of a voxel or two, which the interpolating fit keeps. */
+static const char *smooth_hint(const surface_opts *so, anistar_status st) {
+    if (st != ANISTAR_ENOSURFACE || so->fit_used != ANISTAR_FIT_SMOOTH) return "";
+    return " (the smoothing B-spline of a label image or mask blurs away parts a voxel or two "
+           "across: --fit interpolate keeps them)";
+}
+
 /* Build the surface. Returns an exit status (EXIT_OK on success). */
 static int surface_make(anistar_context *ctx, surface_opts *so, anistar_surface **s) {
     anistar_status st;
@@ -1195,8 +1203,10 @@ static int cmd_mesh(int argc, char **argv) {
     so.quiet = quiet;
     rc = surface_make(ctx, &so, &s);
     if (rc) goto done;
-    if (anistar_metric_from_spec(ctx, s, metric, &m) || anistar_mesher_new(ctx, s, m, &mr)) {
-        say("%s", anistar_last_error(ctx));
+    anistar_status mst = anistar_metric_from_spec(ctx, s, metric, &m);
+    if (mst == ANISTAR_OK) mst = anistar_mesher_new(ctx, s, m, &mr);
+    if (mst != ANISTAR_OK) {
+        say("%s%s", anistar_last_error(ctx), smooth_hint(&so, mst));
         rc = EXIT_ERROR;
         goto done;
     }
@@ -1235,7 +1245,7 @@ static int cmd_mesh(int argc, char **argv) {
     int sig = stop_signal;
     if (prog.shown) fputc('\n', stderr);
     if (st != ANISTAR_OK && st != ANISTAR_INCOMPLETE) {
-        say("%s", anistar_last_error(ctx));
+        say("%s%s", anistar_last_error(ctx), smooth_hint(&so, st));
         rc = EXIT_ERROR;
         goto done;
     }

@@ -243,14 +243,29 @@ static void test_usage_errors(void **state) {
 
 static void test_runtime_errors(void **state) {
     (void)state;
+    /* a mask of one voxel in 3^3: its smoothing B-spline (automatic for a mask) peaks at
+     * (2/3)^3 of the voxel, below the isovalue 0.5: no surface, and the message says how
+     * to keep it */
+    FILE *fp = fopen(AS_TEST_BUILD_DIR "/anistar_clim_one.raw", "wb");
+    assert_non_null(fp);
+    for (int i = 0; i < 27; i++) fputc(i == 13 ? 1 : 0, fp);
+    fclose(fp);
+    fp = fopen(AS_TEST_BUILD_DIR "/anistar_clim_one.mhd", "w");
+    assert_non_null(fp);
+    fprintf(fp, "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = "
+                "False\nDimSize = 3 3 3\nElementType = MET_UCHAR\nElementDataFile = "
+                "anistar_clim_one.raw\n");
+    fclose(fp);
     const char *cases[][12] = {
         /* a mesh file that does not exist */
         {"mesh", AS_TEST_BUILD_DIR "/anistar_clim_missing.off", "-o", AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL},
         /* no zero of f inside the bounding sphere (ENOSURFACE) */
         {"mesh", "--implicit", "x^2+y^2+z^2+1", "--bound", "0,0,0,2", "-o",
          AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL},
+        {"mesh", AS_TEST_BUILD_DIR "/anistar_clim_one.mhd", "--iso", "0.5", "--quiet", "-o",
+         AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL},
     };
-    const char *msgs[] = {"anistar_clim_missing.off", "no"};
+    const char *msgs[] = {"anistar_clim_missing.off", "no", "--fit interpolate keeps them"};
     run_result *r = test_malloc(sizeof *r);
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         unlink(AS_TEST_BUILD_DIR "/anistar_clim_e.off");
@@ -261,6 +276,15 @@ static void test_runtime_errors(void **state) {
         assert_string_equal(r->out, "");
         assert_true(access(AS_TEST_BUILD_DIR "/anistar_clim_e.off", F_OK) != 0); /* nothing written */
     }
+    /* with the interpolating fit the voxel is a blob: certified */
+    const char *keep[] = {"mesh", AS_TEST_BUILD_DIR "/anistar_clim_one.mhd", "--iso", "0.5",
+                          "--fit", "interpolate", "--quiet", "-o",
+                          AS_TEST_BUILD_DIR "/anistar_clim_e.off", NULL};
+    run(keep, r);
+    if (r->status != 0) fail_msg("one voxel, interpolated: exit %d, stderr '%s'", r->status, r->err);
+    unlink(AS_TEST_BUILD_DIR "/anistar_clim_e.off");
+    unlink(AS_TEST_BUILD_DIR "/anistar_clim_one.mhd");
+    unlink(AS_TEST_BUILD_DIR "/anistar_clim_one.raw");
     test_free(r);
 }
 

@@ -1559,6 +1559,25 @@ nomem:
     return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
 }
 
+/* The facets of the tets tets[0..nt) incident to v (see as_del3_vertex_facets) into
+ * out->a (room for 3 nt reserved; tets may lie after that room in the same array). */
+static size_t collect_facets(const as_del3 *d, int32_t v, const int32_t *tets, size_t nt,
+                             int32_t *out) {
+    size_t nf = 0;
+    for (size_t k = 0; k < nt; k++) {
+        int32_t t = tets[k];
+        const int32_t *tv = rec(d, t);
+        int inf = is_inf(tv) ? inf_slot(tv) : -1;
+        for (int j = 0; j < 4; j++) {
+            if (tv[j] == v) continue;
+            if (inf >= 0 && inf != j) continue; /* the facet holds the infinite vertex */
+            int32_t n = tv[4 + j] >> 3;
+            if (t < n) out[nf++] = 4 * t + j;
+        }
+    }
+    return nf;
+}
+
 anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
     anistar_status st = as_del3_vertex_tets(d, v, out);
     if (st != ANISTAR_OK) return st;
@@ -1572,19 +1591,17 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
     }
     int32_t *tets = out->a + 3 * nt; /* the copy lives after the room for 3 nt facets */
     memmove(tets, out->a, nt * sizeof *tets);
-    size_t nf = 0;
-    for (size_t k = 0; k < nt; k++) {
-        int32_t t = tets[k];
-        const int32_t *tv = rec(d, t);
-        int inf = is_inf(tv) ? inf_slot(tv) : -1;
-        for (int j = 0; j < 4; j++) {
-            if (tv[j] == v) continue;
-            if (inf >= 0 && inf != j) continue; /* the facet holds the infinite vertex */
-            int32_t n = tv[4 + j] >> 3;
-            if (t < n) out->a[nf++] = 4 * t + j;
-        }
-    }
-    out->n = nf;
+    out->n = collect_facets(d, v, tets, nt, out->a);
+    return ANISTAR_OK;
+}
+
+anistar_status as_del3_tets_facets(as_del3 *d, int32_t v, const int32_t *tets, size_t nt,
+                                   as_del3_buf *out) {
+    out->n = 0;
+    if (buf_reserve(d->ctx, out, 3 * nt + 1))
+        return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (facets of vertex %d)",
+                       (int)v);
+    out->n = collect_facets(d, v, tets, nt, out->a);
     return ANISTAR_OK;
 }
 

@@ -299,6 +299,13 @@ anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out);
  * Returns as as_del3_vertex_tets. */
 anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out);
 
+/* as_del3_vertex_facets from the tets incident to v already listed (tets[0..nt), in the
+ * order as_del3_vertex_tets gave them, d unchanged since): the same facets in the same
+ * order, without walking around v again. tets must not be out's array. ANISTAR_OK or
+ * ANISTAR_ENOMEM (out emptied). */
+anistar_status as_del3_tets_facets(as_del3 *d, int32_t v, const int32_t *tets, size_t nt,
+                                   as_del3_buf *out);
+
 /*
  * Circumcenter of finite tet t, in the stored (stretched) frame; mapping it back by F^-1
  * is the caller's job. Accuracy (relative to the circumradius), by the tet's condition

@@ -132,15 +132,17 @@ static const double *inc_sphere(as_star *st, int32_t i) {
 
 /* The circumcenter of tet t (stretched frame): from the spheres of the tets incident to v
  * when t is one of them (star_update computes those first: no circumcenter twice), else
- * computed. 0, or -1 for an infinite tet. */
-static int tet_center(as_star *st, int32_t t, double cc[3]) {
-    for (int32_t i = 0; i < st->nitet; i++)
-        if (st->itet[i] == t) {
-            const double *S = inc_sphere(st, i);
-            if (S[3] == -1) return -1;
-            memcpy(cc, S, 3 * sizeof(double));
-            return 0;
-        }
+ * computed. 0, or -1 for an infinite tet.
+ * design: star_update's facet loop keeps sc->slot[t] = t's place in st->itet (else -1),
+ * which finds the sphere without searching the list (the list holds each tet once). */
+static int tet_center(const as_star_scratch *sc, as_star *st, int32_t t, double cc[3]) {
+    int32_t i = t < sc->cap_slot ? sc->slot[t] : -1;
+    if (i >= 0) {
+        const double *S = inc_sphere(st, i);
+        if (S[3] == -1) return -1;
+        memcpy(cc, S, 3 * sizeof(double));
+        return 0;
+    }
     return as_del3_circumcenter(st->d, t, cc);
 }
 
@@ -202,7 +204,7 @@ static anistar_status tet_inside(const as_star_env *env, as_star_scratch *sc, as
         return ANISTAR_OK;
     }
     double cc[3], x[3];
-    if (tet_center(st, t, cc) != 0)
+    if (tet_center(sc, st, t, cc) != 0)
         return as_fail(env->ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
     as_metric_unapply(mf, cc, x);
     int side = 1;
@@ -501,6 +503,69 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
     }
 }
 
+/* star_update's restricted facets: the facets around v (tets st->itet), those whose two
+ * tets differ in inside state, each kept from sc->old when its tets are not fresh, else
+ * computed (dual segment crossing, radius). sc->slot maps st->itet (see tet_center). */
+static anistar_status update_facets(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, as_star_scratch *sc) {
+    anistar_context *ctx = env->ctx;
+    anistar_status s;
+    /* design: the facets around v from the tets around v listed above (not walked again) */
+    if ((s = as_del3_tets_facets(st->d, st->vloc, sc->tets.a, sc->tets.n, &sc->faces)) !=
+        ANISTAR_OK)
+        return s;
+    const as_del3 *d = st->d;
+    const double *vx = as_star_xyz(st, env->xyz, st->gid);
+    for (size_t k = 0; k < sc->faces.n; k++) {
+        int32_t face = sc->faces.a[k];
+        int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
+        int in1, in2;
+        if ((s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK) return s;
+        if ((s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK) return s;
+        if (in1 == in2) continue;
+        as_gid g[3];
+        int32_t lv[3], n = 0;
+        for (int j = 0; j < 4; j++) {
+            if (j == (face & 3)) continue;
+            lv[n] = as_del3_tet_vertex(d, t1, j);
+            g[n] = (as_gid)d->gid[lv[n]];
+            n++;
+        }
+        as_sort_gid3(g);
+        if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
+        as_rfacet *f = &st->rf[st->nrf++];
+        int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
+        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
+        if (o >= 0) {
+            *f = sc->old[o];
+            f->fresh = 0;
+            continue;
+        }
+        memset(f, 0, sizeof *f);
+        memcpy(f->g, g, sizeof g);
+        f->fresh = 1;
+        if (sc->probe) { /* the triple is all a probe asks: no crossing, no radius */
+            memcpy(f->c, vx, sizeof f->c);
+            continue;
+        }
+        /* design: dual segment between the two mapped circumcenters; the crossing nearest
+         * the facet's own circumcenter (DESIGN.md 4.4). */
+        double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
+        if (tet_center(sc, st, t1, cc1) || tet_center(sc, st, t2, cc2))
+            return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
+        as_metric_unapply(mf, cc1, a);
+        as_metric_unapply(mf, cc2, b);
+        if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
+                             as_del3_point(d, lv[2]), fcs) == 0)
+            as_metric_unapply(mf, fcs, fc);
+        else
+            for (int q = 0; q < 3; q++) fc[q] = 0.5 * (a[q] + b[q]);
+        if ((s = dual_crossing(env, sc, a, b, fc, f->c)) != ANISTAR_OK) return s;
+        f->r = as_metric_dist(mf, f->c, vx);
+    }
+    return ANISTAR_OK;
+}
+
 /* Recompute restricted facets, closed flag and box after the del3 changed. */
 static anistar_status star_update(const as_star_env *env, as_star *st, const as_metric_frame *mf,
                                   as_star_scratch *sc) {
@@ -557,56 +622,11 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     sc->sph_fresh = 1;
     memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
     st->nitet = nnew;
-    if ((s = as_del3_vertex_facets(st->d, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
+    for (int32_t i = 0; i < nnew; i++) sc->slot[st->itet[i]] = i; /* for tet_center */
+    s = update_facets(env, st, mf, sc);
+    for (int32_t i = 0; i < nnew; i++) sc->slot[st->itet[i]] = -1;
+    if (s != ANISTAR_OK) return s;
     const as_del3 *d = st->d;
-    const double *vx = as_star_xyz(st, env->xyz, st->gid);
-    for (size_t k = 0; k < sc->faces.n; k++) {
-        int32_t face = sc->faces.a[k];
-        int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
-        int in1, in2;
-        if ((s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK) return s;
-        if ((s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK) return s;
-        if (in1 == in2) continue;
-        as_gid g[3];
-        int32_t lv[3], n = 0;
-        for (int j = 0; j < 4; j++) {
-            if (j == (face & 3)) continue;
-            lv[n] = as_del3_tet_vertex(d, t1, j);
-            g[n] = (as_gid)d->gid[lv[n]];
-            n++;
-        }
-        as_sort_gid3(g);
-        if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
-        as_rfacet *f = &st->rf[st->nrf++];
-        int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
-        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
-        if (o >= 0) {
-            *f = sc->old[o];
-            f->fresh = 0;
-            continue;
-        }
-        memset(f, 0, sizeof *f);
-        memcpy(f->g, g, sizeof g);
-        f->fresh = 1;
-        if (sc->probe) { /* the triple is all a probe asks: no crossing, no radius */
-            memcpy(f->c, vx, sizeof f->c);
-            continue;
-        }
-        /* design: dual segment between the two mapped circumcenters; the crossing nearest
-         * the facet's own circumcenter (DESIGN.md 4.4). */
-        double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
-        if (tet_center(st, t1, cc1) || tet_center(st, t2, cc2))
-            return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
-        as_metric_unapply(mf, cc1, a);
-        as_metric_unapply(mf, cc2, b);
-        if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
-                             as_del3_point(d, lv[2]), fcs) == 0)
-            as_metric_unapply(mf, fcs, fc);
-        else
-            for (int q = 0; q < 3; q++) fc[q] = 0.5 * (a[q] + b[q]);
-        if ((s = dual_crossing(env, sc, a, b, fc, f->c)) != ANISTAR_OK) return s;
-        f->r = as_metric_dist(mf, f->c, vx);
-    }
     /* sort by triple (insertion sort: tens of facets) */
     for (int32_t i = 1; i < st->nrf; i++) {
         as_rfacet x = st->rf[i];
@@ -622,8 +642,15 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
         as_star_rezone(st, env->xyz, mf);
     }
-    /* the fresh marks served this update */
-    for (int32_t t = 0; t < d->nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
+    /* the fresh marks served this update (design: eight flags per step) */
+    size_t nt = (size_t)d->nt, t = 0;
+    for (; t + 8 <= nt; t += 8) {
+        uint64_t w;
+        memcpy(&w, st->tflag + t, sizeof w);
+        w &= ~(UINT64_C(0x0101010101010101) * TF_FRESH);
+        memcpy(st->tflag + t, &w, sizeof w);
+    }
+    for (; t < nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
     return ANISTAR_OK;
 }
 
@@ -961,16 +988,18 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
                 tet_put(trec, fmt, nt, t, r);
                 continue;
             }
-            uint64_t x = (uint64_t)(uint32_t)(r[0] + 2) | (uint64_t)(uint32_t)(r[1] + 2) << 6 |
-                         (uint64_t)(uint32_t)(r[2] + 2) << 12 |
-                         (uint64_t)(uint32_t)(r[3] + 2) << 18;
-            /* handle 8t'+j -> 4t'+j: the bits above j shifted down by one */
-            uint32_t h0 = (uint32_t)r[4], h1 = (uint32_t)r[5], h2 = (uint32_t)r[6];
-            uint32_t h3 = (uint32_t)r[7];
-            x |= (uint64_t)((h0 >> 1 & ~3u) | (h0 & 3)) << 24 |
-                 (uint64_t)((h1 >> 1 & ~3u) | (h1 & 3)) << 34 |
-                 (uint64_t)((h2 >> 1 & ~3u) | (h2 & 3)) << 44 |
-                 (uint64_t)((h3 >> 1 & ~3u) | (h3 & 3)) << 54;
+            /* design: the fields are disjoint, so they are summed: the vertex codes as
+             * r[i] << 6i plus the constant of the + 2s (modulo 2^64: the vertices are
+             * -2 .. 61, the total is the code), and the handle 8t'+j as 4t'+j =
+             * (8t'+j + j) / 2, its field h << 10i + 24 as (h + j) << 10i + 23 (h + j is
+             * even): fewer operations than masking each field */
+            uint64_t x = (uint64_t)(int64_t)r[0] + ((uint64_t)(int64_t)r[1] << 6) +
+                         ((uint64_t)(int64_t)r[2] << 12) + ((uint64_t)(int64_t)r[3] << 18) +
+                         (uint64_t)(2 + (2 << 6) + (2 << 12) + (2 << 18));
+            uint64_t h0 = (uint32_t)r[4], h1 = (uint32_t)r[5], h2 = (uint32_t)r[6];
+            uint64_t h3 = (uint32_t)r[7];
+            x += ((h0 + (h0 & 3)) << 23) + ((h1 + (h1 & 3)) << 33) + ((h2 + (h2 & 3)) << 43) +
+                 ((h3 + (h3 & 3)) << 53);
             w[t] = x;
         }
     } else if (fmt == FMT_NARROW) {

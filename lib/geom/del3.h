@@ -299,12 +299,11 @@ anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out);
  * Returns as as_del3_vertex_tets. */
 anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out);
 
-/* as_del3_vertex_facets from the tets incident to v already listed (tets[0..nt), in the
- * order as_del3_vertex_tets gave them, d unchanged since): the same facets in the same
- * order, without walking around v again. tets must not be out's array. ANISTAR_OK or
- * ANISTAR_ENOMEM (out emptied). */
-anistar_status as_del3_tets_facets(as_del3 *d, int32_t v, const int32_t *tets, size_t nt,
-                                   as_del3_buf *out);
+/* as_del3_vertex_tets into *tets and as_del3_vertex_facets into *facets in one walk
+ * around v (the same lists in the same orders). Returns as as_del3_vertex_tets (both
+ * lists empty on failure). */
+anistar_status as_del3_vertex_tets_facets(as_del3 *d, int32_t v, as_del3_buf *tets,
+                                          as_del3_buf *facets);
 
 /*
  * Circumcenter of finite tet t, in the stored (stretched) frame; mapping it back by F^-1

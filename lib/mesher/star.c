@@ -475,14 +475,18 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
         }
         zr *= 1 + 4 * AS_STAR_SLACK;
         st->zr2 = zr * zr;
+        double n[3]; /* design: the frame's unit extents once (as_metric_box_axes) */
+        as_metric_box_axes(mf, n);
         for (int32_t i = 0; i < st->nrf; i++) {
-            double h[3];
-            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
+            const double r = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            const double h[3] = {r * n[0], r * n[1], r * n[2]};
             box_add(lo, hi, st->rf[i].c, h);
         }
     } else {
+        double n[3];
+        as_metric_box_axes(mf, n);
         for (int32_t k = 0; k < st->nitet; k++) {
-            double S[4], x[3], h[3], dd[3];
+            double S[4], x[3], dd[3];
             /* open: the update's spheres; packed: recomputed (the same numbers) */
             if (st->d)
                 memcpy(S, inc_sphere(st, k), sizeof S);
@@ -492,7 +496,7 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
             sub3(S, V, dd);
             double R = sqrt(dot3(dd, dd));
             as_metric_unapply(mf, S, x);
-            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
+            const double r = R * (1 + AS_STAR_SLACK), h[3] = {r * n[0], r * n[1], r * n[2]};
             box_add(lo, hi, x, h);
         }
     }
@@ -503,25 +507,26 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
     }
 }
 
-/* star_update's restricted facets: the facets around v (tets st->itet), those whose two
+/* star_update's restricted facets: of the facets around v (sc->faces), those whose two
  * tets differ in inside state, each kept from sc->old when its tets are not fresh, else
  * computed (dual segment crossing, radius). sc->slot maps st->itet (see tet_center). */
 static anistar_status update_facets(const as_star_env *env, as_star *st,
                                     const as_metric_frame *mf, as_star_scratch *sc) {
     anistar_context *ctx = env->ctx;
     anistar_status s;
-    /* design: the facets around v from the tets around v listed above (not walked again) */
-    if ((s = as_del3_tets_facets(st->d, st->vloc, sc->tets.a, sc->tets.n, &sc->faces)) !=
-        ANISTAR_OK)
-        return s;
     const as_del3 *d = st->d;
     const double *vx = as_star_xyz(st, env->xyz, st->gid);
     for (size_t k = 0; k < sc->faces.n; k++) {
         int32_t face = sc->faces.a[k];
         int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
-        int in1, in2;
-        if ((s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK) return s;
-        if ((s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK) return s;
+        /* design: the cached states read here (most are known: a call per side cost more
+         * than the lookup) */
+        const unsigned f1 = st->tflag[t1] & TF_STATE, f2 = st->tflag[t2] & TF_STATE;
+        int in1 = f1 == TF_IN, in2 = f2 == TF_IN;
+        if (f1 == TF_UNKNOWN && (s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK)
+            return s;
+        if (f2 == TF_UNKNOWN && (s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK)
+            return s;
         if (in1 == in2) continue;
         as_gid g[3];
         int32_t lv[3], n = 0;
@@ -578,8 +583,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     sc->nold = st->nrf;
     st->nrf = 0;
 
-    /* the tets incident to v */
-    if ((s = as_del3_vertex_tets(st->d, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
+    /* the tets incident to v, and the facets around v (one walk) */
+    if ((s = as_del3_vertex_tets_facets(st->d, st->vloc, &sc->tets, &sc->faces)) !=
+        ANISTAR_OK)
+        return s;
     const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
     if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
     if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;

@@ -648,6 +648,19 @@ static DEL3_NOINLINE int conflict_nocache(as_del3 *d, int32_t t, const double *p
     return conflict_exact(d, t, p, g);
 }
 
+/* conflict_infinite for infinite tet r, the common case inline: (k, f0, f1, f2) (k the
+ * infinite slot, f = face_vtx[k]) is an even permutation, so with A, B, C the points of
+ * the hull face, orient3d(r's points with p in slot k) = orient3d(p, A, B, C) =
+ * -orient3d(A, B, C, p): the filter's sign of the latter decides, else (filter undecided)
+ * conflict_infinite decides exactly, as before. */
+DEL3_INLINE int conflict_infinite_fast(const as_del3 *d, const int32_t *r, const double *p,
+                                       int64_t g) {
+    const int8_t *fv = face_vtx[inf_slot(r)];
+    double o = as_orient3d_filter(pt(d, r[fv[0]]), pt(d, r[fv[1]]), pt(d, r[fv[2]]), p);
+    if (o != 0) return o < 0;
+    return conflict_infinite(d, r, p, g);
+}
+
 /* in_conflict through the sphere cache of t (which reads nothing but t's sphere), or the
  * inline filter when there is no cache. The insertion path. */
 DEL3_INLINE int in_conflict_fast(as_del3 *d, const double *sph, int32_t t, const double *p,
@@ -659,7 +672,7 @@ DEL3_INLINE int in_conflict_fast(as_del3 *d, const double *sph, int32_t t, const
         s = sphere_test(c, p);
     } else { /* big, or no cache wanted */
         const int32_t *r = rec(d, t);
-        if (is_inf(r)) return conflict_infinite(d, r, p, g);
+        if (is_inf(r)) return conflict_infinite_fast(d, r, p, g);
         s = isp_filter(pt(d, r[0]), pt(d, r[1]), pt(d, r[2]), pt(d, r[3]), p);
     }
     if (AS_LIKELY(s != 0)) return s > 0;

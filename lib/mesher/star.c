@@ -675,6 +675,20 @@ static int scratch_fit32(anistar_context *ctx, void **p, int32_t *cap, size_t n,
     return 0;
 }
 
+/* tiny_handle[h]: the del3 handle 8t'+j of the tiny record's 10-bit field h = 4t'+j
+ * (design: one load per handle when unpacking, instead of masking and adding) */
+#define TH1(h) ((int32_t)((h) + ((h) & ~3)))
+#define TH4(h) TH1(h), TH1((h) + 1), TH1((h) + 2), TH1((h) + 3)
+#define TH16(h) TH4(h), TH4((h) + 4), TH4((h) + 8), TH4((h) + 12)
+#define TH64(h) TH16(h), TH16((h) + 16), TH16((h) + 32), TH16((h) + 48)
+#define TH256(h) TH64(h), TH64((h) + 64), TH64((h) + 128), TH64((h) + 192)
+static const int32_t tiny_handle[1024] = {TH256(0), TH256(256), TH256(512), TH256(768)};
+#undef TH256
+#undef TH64
+#undef TH16
+#undef TH4
+#undef TH1
+
 /* The packed record formats of a star's tets (see star.h): their sizes in bytes. */
 enum { FMT_WIDE = 0, FMT_NARROW = 1, FMT_TINY = 2 };
 static const size_t fmt_tet_bytes[3] = {8 * sizeof(int32_t), 12, 8};
@@ -784,22 +798,48 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     }
     as_del3 *d = &sc->work;
     const int32_t nv = unpack ? st->nv : 0, nt = unpack ? st->nt : 0;
+    /* the work still holds st as this scratch packed it (as_star_scratch, work_star) */
+    const int kept = unpack && nv && sc->work_star == st && st->pack_sc == (const void *)sc &&
+                     st->pack_serial == sc->serial && d->nv == nv && d->nt == nt &&
+                     env->xyz == sc->work_xyz && st->ovr == sc->work_ovr &&
+                     (!st->ovr || (st->ovr->gid == sc->work_ovr_copy.gid &&
+                                   memcmp(st->ovr->p, sc->work_ovr_copy.p,
+                                          sizeof st->ovr->p) == 0)) &&
+                     memcmp(mf->f, sc->work_f, sizeof sc->work_f) == 0;
+    sc->work_star = NULL; /* the work changes from here on; the points it will hold: */
+    memcpy(sc->work_f, mf->f, sizeof sc->work_f);
+    sc->work_xyz = env->xyz;
+    sc->work_ovr = st->ovr;
+    if (st->ovr) {
+        sc->work_ovr_copy.gid = st->ovr->gid;
+        memcpy(sc->work_ovr_copy.p, st->ovr->p, sizeof sc->work_ovr_copy.p);
+    }
     if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
         scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
                       sizeof *sc->itet) ||
         scratch_fit(ctx, (void **)&sc->fsph, &sc->cap_fsph, 4 * (size_t)st->nitet,
                     sizeof *sc->fsph) ||
         scratch_fit(ctx, (void **)&sc->tflag, &sc->cap_tflag, (size_t)nt, 1) ||
-        (nv && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
+        (nv && !kept && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    as_del3_reset(d);
+    if (kept) {
+        /* what unpacking would write and an operation may have changed since */
+        d->boot[0] = d->boot[1] = d->boot[2] = -1;
+        d->removed.n = d->created.n = 0;
+        d->rebuilt = 0;
+        memset(&d->stats, 0, sizeof d->stats);
+        d->hint = st->hint;
+        d->rng = st->rng;
+    } else {
+        as_del3_reset(d);
+    }
     if (st->nrf) memcpy(sc->rf, st->rf, (size_t)st->nrf * sizeof *sc->rf);
     if (st->nitet) {
         memcpy(sc->itet, st->itet, (size_t)st->nitet * sizeof *sc->itet);
         memcpy(sc->fsph, st->fsph, 4 * (size_t)st->nitet * sizeof *sc->fsph);
     }
     if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
-    if (nv) {
+    if (nv && !kept) {
         for (int32_t k = 0; k < nv; k++) {
             as_del3_vertex *x = &d->vert[k];
             as_star_point(st, env->xyz, mf, k, x->x);
@@ -820,13 +860,11 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
                 r[1] = (int32_t)((x >> 6) & 63) - 2;
                 r[2] = (int32_t)((x >> 12) & 63) - 2;
                 r[3] = (int32_t)((x >> 18) & 63) - 2;
-                /* handle 4t'+j (10 bits) -> 8t'+j: the bits above j shifted up by one */
-                uint32_t h0 = (uint32_t)(x >> 24) & 1023, h1 = (uint32_t)(x >> 34) & 1023;
-                uint32_t h2 = (uint32_t)(x >> 44) & 1023, h3 = (uint32_t)(x >> 54) & 1023;
-                r[4] = (int32_t)(h0 + (h0 & ~3u));
-                r[5] = (int32_t)(h1 + (h1 & ~3u));
-                r[6] = (int32_t)(h2 + (h2 & ~3u));
-                r[7] = (int32_t)(h3 + (h3 & ~3u));
+                /* handle 4t'+j (10 bits) -> 8t'+j (tiny_handle) */
+                r[4] = tiny_handle[(x >> 24) & 1023];
+                r[5] = tiny_handle[(x >> 34) & 1023];
+                r[6] = tiny_handle[(x >> 44) & 1023];
+                r[7] = tiny_handle[x >> 54];
             }
         } else if (st->fmt == FMT_NARROW) {
             const uint16_t *h = st->trec;
@@ -1056,6 +1094,11 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     st->hint = d->hint;
     st->rng = d->rng;
     if (nv) memcpy(st->fv, d->vert[st->vloc].x, sizeof st->fv);
+    /* the work keeps st's records: star_open may reuse them (as_star_scratch) */
+    sc->serial++;
+    st->pack_sc = sc;
+    st->pack_serial = sc->serial;
+    sc->work_star = nv ? st : NULL;
     return ANISTAR_OK;
 }
 

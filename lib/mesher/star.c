@@ -840,12 +840,23 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     }
     if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
     if (nv && !kept) {
+        /* the vertices: as_star_point and vtet_get, their branches taken once */
+        as_del3_vertex *vert = d->vert;
+        const as_gid *vg = st->vgid;
+        if (st->vx)
+            for (int32_t k = 0; k < nv; k++)
+                memcpy(vert[k].x, st->vx + 3 * (size_t)k, sizeof vert[k].x);
+        else
+            for (int32_t k = 0; k < nv; k++)
+                as_metric_apply(mf, as_star_xyz(st, env->xyz, vg[k]), vert[k].x);
+        if (st->fmt == FMT_TINY)
+            for (int32_t k = 0; k < nv; k++)
+                vert[k].tet = (int32_t)((const uint8_t *)st->vtet)[k] - 1;
+        else
+            for (int32_t k = 0; k < nv; k++) vert[k].tet = vtet_get(st, k);
         for (int32_t k = 0; k < nv; k++) {
-            as_del3_vertex *x = &d->vert[k];
-            as_star_point(st, env->xyz, mf, k, x->x);
-            x->tet = vtet_get(st, k);
-            x->loc = -1;
-            d->gid[k] = st->vgid[k];
+            vert[k].loc = -1;
+            d->gid[k] = vg[k];
         }
         if (st->fmt == FMT_TINY) { /* the common case, unrolled */
             const uint64_t *w = st->trec;

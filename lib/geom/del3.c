@@ -648,6 +648,19 @@ static DEL3_NOINLINE int conflict_nocache(as_del3 *d, int32_t t, const double *p
     return conflict_exact(d, t, p, g);
 }
 
+/* conflict_infinite for infinite tet r, the common case inline: (k, f0, f1, f2) (k the
+ * infinite slot, f = face_vtx[k]) is an even permutation, so with A, B, C the points of
+ * the hull face, orient3d(r's points with p in slot k) = orient3d(p, A, B, C) =
+ * -orient3d(A, B, C, p): the filter's sign of the latter decides, else (filter undecided)
+ * conflict_infinite decides exactly, as before. */
+DEL3_INLINE int conflict_infinite_fast(const as_del3 *d, const int32_t *r, const double *p,
+                                       int64_t g) {
+    const int8_t *fv = face_vtx[inf_slot(r)];
+    double o = as_orient3d_filter(pt(d, r[fv[0]]), pt(d, r[fv[1]]), pt(d, r[fv[2]]), p);
+    if (o != 0) return o < 0;
+    return conflict_infinite(d, r, p, g);
+}
+
 /* in_conflict through the sphere cache of t (which reads nothing but t's sphere), or the
  * inline filter when there is no cache. The insertion path. */
 DEL3_INLINE int in_conflict_fast(as_del3 *d, const double *sph, int32_t t, const double *p,
@@ -659,7 +672,7 @@ DEL3_INLINE int in_conflict_fast(as_del3 *d, const double *sph, int32_t t, const
         s = sphere_test(c, p);
     } else { /* big, or no cache wanted */
         const int32_t *r = rec(d, t);
-        if (is_inf(r)) return conflict_infinite(d, r, p, g);
+        if (is_inf(r)) return conflict_infinite_fast(d, r, p, g);
         s = isp_filter(pt(d, r[0]), pt(d, r[1]), pt(d, r[2]), pt(d, r[3]), p);
     }
     if (AS_LIKELY(s != 0)) return s > 0;
@@ -1559,6 +1572,25 @@ nomem:
     return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
 }
 
+/* The facets of the tets tets[0..nt) incident to v (see as_del3_vertex_facets) into
+ * out->a (room for 3 nt reserved; tets may lie after that room in the same array). */
+static size_t collect_facets(const as_del3 *d, int32_t v, const int32_t *tets, size_t nt,
+                             int32_t *out) {
+    size_t nf = 0;
+    for (size_t k = 0; k < nt; k++) {
+        int32_t t = tets[k];
+        const int32_t *tv = rec(d, t);
+        int inf = is_inf(tv) ? inf_slot(tv) : -1;
+        for (int j = 0; j < 4; j++) {
+            if (tv[j] == v) continue;
+            if (inf >= 0 && inf != j) continue; /* the facet holds the infinite vertex */
+            int32_t n = tv[4 + j] >> 3;
+            if (t < n) out[nf++] = 4 * t + j;
+        }
+    }
+    return nf;
+}
+
 anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
     anistar_status st = as_del3_vertex_tets(d, v, out);
     if (st != ANISTAR_OK) return st;
@@ -1572,20 +1604,46 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
     }
     int32_t *tets = out->a + 3 * nt; /* the copy lives after the room for 3 nt facets */
     memmove(tets, out->a, nt * sizeof *tets);
-    size_t nf = 0;
-    for (size_t k = 0; k < nt; k++) {
-        int32_t t = tets[k];
+    out->n = collect_facets(d, v, tets, nt, out->a);
+    return ANISTAR_OK;
+}
+
+anistar_status as_del3_vertex_tets_facets(as_del3 *d, int32_t v, as_del3_buf *tets,
+                                          as_del3_buf *facets) {
+    tets->n = 0;
+    facets->n = 0;
+    if (!d->dim3 || v < 0 || v >= d->nv)
+        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: no vertex %d in a 3D triangulation",
+                       (int)v);
+    /* design: as_del3_vertex_tets, each tet's facets (collect_facets) taken as it is
+     * popped: the lists and their orders of the two calls, one pass */
+    int32_t t0 = d->vert[v].tet;
+    if (buf_reserve(d->ctx, tets, 32)) goto nomem;
+    tets->a[tets->n++] = t0;
+    d->mark[t0] = MARK_OUT;
+    for (size_t k = 0; k < tets->n; k++) {
+        int32_t t = tets->a[k];
+        if ((tets->n + 4 > tets->cap && buf_reserve(d->ctx, tets, tets->n + 4)) ||
+            (facets->n + 4 > facets->cap && buf_reserve(d->ctx, facets, facets->n + 4)))
+            goto nomem;
         const int32_t *tv = rec(d, t);
         int inf = is_inf(tv) ? inf_slot(tv) : -1;
         for (int j = 0; j < 4; j++) {
-            if (tv[j] == v) continue;
-            if (inf >= 0 && inf != j) continue; /* the facet holds the infinite vertex */
+            if (tv[j] == v) continue; /* the only face without v */
             int32_t n = tv[4 + j] >> 3;
-            if (t < n) out->a[nf++] = 4 * t + j;
+            if ((inf < 0 || inf == j) && t < n) facets->a[facets->n++] = 4 * t + j;
+            if (d->mark[n] != MARK_NONE) continue;
+            d->mark[n] = MARK_OUT;
+            tets->a[tets->n++] = n;
         }
     }
-    out->n = nf;
+    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
     return ANISTAR_OK;
+nomem:
+    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
+    tets->n = 0;
+    facets->n = 0;
+    return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
 }
 
 /* ---- circumcenter ------------------------------------------------------------------------ */

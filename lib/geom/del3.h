@@ -299,6 +299,12 @@ anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out);
  * Returns as as_del3_vertex_tets. */
 anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out);
 
+/* as_del3_vertex_tets into *tets and as_del3_vertex_facets into *facets in one walk
+ * around v (the same lists in the same orders). Returns as as_del3_vertex_tets (both
+ * lists empty on failure). */
+anistar_status as_del3_vertex_tets_facets(as_del3 *d, int32_t v, as_del3_buf *tets,
+                                          as_del3_buf *facets);
+
 /*
  * Circumcenter of finite tet t, in the stored (stretched) frame; mapping it back by F^-1
  * is the caller's job. Accuracy (relative to the circumradius), by the tet's condition

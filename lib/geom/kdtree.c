@@ -590,11 +590,25 @@ static inline int as_kd_range_has(const as_kd_range *rg, const double x[3]) {
     return 1;
 }
 
+/* design: room for the c slots first, then plain stores (one growth check per node, not
+ * per point) */
 static int as_kd_range_slots(anistar_context *ctx, const as_kdtree *kd, size_t b, size_t c,
                              int all, const as_kd_range *rg, as_idlist *out) {
-    for (size_t i = b; i < b + c; i++)
-        if (all || as_kd_range_has(rg, kd->pts[i].x))
-            if (as_idlist_push(ctx, out, kd->pts[i].id)) return -1;
+    if (out->n + c > out->cap) {
+        void *p = out->ids;
+        if (as_grow(ctx, &p, &out->cap, out->n + c, sizeof *out->ids)) return -1;
+        out->ids = p;
+    }
+    int32_t *ids = out->ids;
+    size_t n = out->n;
+    const as_kdpoint *pts = kd->pts;
+    if (all) {
+        for (size_t i = b; i < b + c; i++) ids[n++] = pts[i].id;
+    } else {
+        for (size_t i = b; i < b + c; i++)
+            if (as_kd_range_has(rg, pts[i].x)) ids[n++] = pts[i].id;
+    }
+    out->n = n;
     return 0;
 }
 

@@ -378,9 +378,15 @@ int as_metric_distortion_filter(const as_metric_frame *a, const as_metric_frame 
  * x - c = F^-1 y with |y| <= r, so the extent on axis i is max over |y| <= r of
  * row_i(F^-1) . y = r |row_i(F^-1)| (DESIGN.md 4.4).
  */
-void as_metric_ellipsoid_box(const as_metric_frame *mf, double r, double h[3]) {
+void as_metric_box_axes(const as_metric_frame *mf, double n[3]) {
     for (int i = 0; i < 3; i++) {
         const double *w = mf->finv + 3 * i;
-        h[i] = r * as_norm3_scaled(w, w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+        n[i] = as_norm3_scaled(w, w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
     }
+}
+
+void as_metric_ellipsoid_box(const as_metric_frame *mf, double r, double h[3]) {
+    double n[3];
+    as_metric_box_axes(mf, n);
+    for (int i = 0; i < 3; i++) h[i] = r * n[i];
 }

@@ -84,5 +84,8 @@ double as_metric_distortion_over(const as_metric_frame *a, const as_metric_frame
 /* Half-extents of the axis-aligned box of the M-ellipsoid {x : |F(x - c)| <= r}:
  * h[i] = r * |row_i(F^-1)|. */
 void as_metric_ellipsoid_box(const as_metric_frame *mf, double r, double h[3]);
+/* The unit half-extents n[i] = |row_i(F^-1)|: as_metric_ellipsoid_box(mf, r, h) is
+ * h[i] = r * n[i], bit for bit (for callers that take many boxes of one frame). */
+void as_metric_box_axes(const as_metric_frame *mf, double n[3]);
 
 #endif /* ANISTAR_METRIC_H */

@@ -132,15 +132,17 @@ static const double *inc_sphere(as_star *st, int32_t i) {
 
 /* The circumcenter of tet t (stretched frame): from the spheres of the tets incident to v
  * when t is one of them (star_update computes those first: no circumcenter twice), else
- * computed. 0, or -1 for an infinite tet. */
-static int tet_center(as_star *st, int32_t t, double cc[3]) {
-    for (int32_t i = 0; i < st->nitet; i++)
-        if (st->itet[i] == t) {
-            const double *S = inc_sphere(st, i);
-            if (S[3] == -1) return -1;
-            memcpy(cc, S, 3 * sizeof(double));
-            return 0;
-        }
+ * computed. 0, or -1 for an infinite tet.
+ * design: star_update's facet loop keeps sc->slot[t] = t's place in st->itet (else -1),
+ * which finds the sphere without searching the list (the list holds each tet once). */
+static int tet_center(const as_star_scratch *sc, as_star *st, int32_t t, double cc[3]) {
+    int32_t i = t < sc->cap_slot ? sc->slot[t] : -1;
+    if (i >= 0) {
+        const double *S = inc_sphere(st, i);
+        if (S[3] == -1) return -1;
+        memcpy(cc, S, 3 * sizeof(double));
+        return 0;
+    }
     return as_del3_circumcenter(st->d, t, cc);
 }
 
@@ -202,7 +204,7 @@ static anistar_status tet_inside(const as_star_env *env, as_star_scratch *sc, as
         return ANISTAR_OK;
     }
     double cc[3], x[3];
-    if (tet_center(st, t, cc) != 0)
+    if (tet_center(sc, st, t, cc) != 0)
         return as_fail(env->ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
     as_metric_unapply(mf, cc, x);
     int side = 1;
@@ -473,14 +475,18 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
         }
         zr *= 1 + 4 * AS_STAR_SLACK;
         st->zr2 = zr * zr;
+        double n[3]; /* design: the frame's unit extents once (as_metric_box_axes) */
+        as_metric_box_axes(mf, n);
         for (int32_t i = 0; i < st->nrf; i++) {
-            double h[3];
-            as_metric_ellipsoid_box(mf, st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK), h);
+            const double r = st->rf[i].r * AS_STAR_ZONE_INFLATE * (1 + AS_STAR_SLACK);
+            const double h[3] = {r * n[0], r * n[1], r * n[2]};
             box_add(lo, hi, st->rf[i].c, h);
         }
     } else {
+        double n[3];
+        as_metric_box_axes(mf, n);
         for (int32_t k = 0; k < st->nitet; k++) {
-            double S[4], x[3], h[3], dd[3];
+            double S[4], x[3], dd[3];
             /* open: the update's spheres; packed: recomputed (the same numbers) */
             if (st->d)
                 memcpy(S, inc_sphere(st, k), sizeof S);
@@ -490,7 +496,7 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
             sub3(S, V, dd);
             double R = sqrt(dot3(dd, dd));
             as_metric_unapply(mf, S, x);
-            as_metric_ellipsoid_box(mf, R * (1 + AS_STAR_SLACK), h);
+            const double r = R * (1 + AS_STAR_SLACK), h[3] = {r * n[0], r * n[1], r * n[2]};
             box_add(lo, hi, x, h);
         }
     }
@@ -499,6 +505,70 @@ void as_star_rezone(as_star *st, const double *xyz, const as_metric_frame *mf) {
         st->lo[k] = lo[k] - pad;
         st->hi[k] = hi[k] + pad;
     }
+}
+
+/* star_update's restricted facets: of the facets around v (sc->faces), those whose two
+ * tets differ in inside state, each kept from sc->old when its tets are not fresh, else
+ * computed (dual segment crossing, radius). sc->slot maps st->itet (see tet_center). */
+static anistar_status update_facets(const as_star_env *env, as_star *st,
+                                    const as_metric_frame *mf, as_star_scratch *sc) {
+    anistar_context *ctx = env->ctx;
+    anistar_status s;
+    const as_del3 *d = st->d;
+    const double *vx = as_star_xyz(st, env->xyz, st->gid);
+    for (size_t k = 0; k < sc->faces.n; k++) {
+        int32_t face = sc->faces.a[k];
+        int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
+        /* design: the cached states read here (most are known: a call per side cost more
+         * than the lookup) */
+        const unsigned f1 = st->tflag[t1] & TF_STATE, f2 = st->tflag[t2] & TF_STATE;
+        int in1 = f1 == TF_IN, in2 = f2 == TF_IN;
+        if (f1 == TF_UNKNOWN && (s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK)
+            return s;
+        if (f2 == TF_UNKNOWN && (s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK)
+            return s;
+        if (in1 == in2) continue;
+        as_gid g[3];
+        int32_t lv[3], n = 0;
+        for (int j = 0; j < 4; j++) {
+            if (j == (face & 3)) continue;
+            lv[n] = as_del3_tet_vertex(d, t1, j);
+            g[n] = (as_gid)d->gid[lv[n]];
+            n++;
+        }
+        as_sort_gid3(g);
+        if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
+        as_rfacet *f = &st->rf[st->nrf++];
+        int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
+        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
+        if (o >= 0) {
+            *f = sc->old[o];
+            f->fresh = 0;
+            continue;
+        }
+        memset(f, 0, sizeof *f);
+        memcpy(f->g, g, sizeof g);
+        f->fresh = 1;
+        if (sc->probe) { /* the triple is all a probe asks: no crossing, no radius */
+            memcpy(f->c, vx, sizeof f->c);
+            continue;
+        }
+        /* design: dual segment between the two mapped circumcenters; the crossing nearest
+         * the facet's own circumcenter (DESIGN.md 4.4). */
+        double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
+        if (tet_center(sc, st, t1, cc1) || tet_center(sc, st, t2, cc2))
+            return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
+        as_metric_unapply(mf, cc1, a);
+        as_metric_unapply(mf, cc2, b);
+        if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
+                             as_del3_point(d, lv[2]), fcs) == 0)
+            as_metric_unapply(mf, fcs, fc);
+        else
+            for (int q = 0; q < 3; q++) fc[q] = 0.5 * (a[q] + b[q]);
+        if ((s = dual_crossing(env, sc, a, b, fc, f->c)) != ANISTAR_OK) return s;
+        f->r = as_metric_dist(mf, f->c, vx);
+    }
+    return ANISTAR_OK;
 }
 
 /* Recompute restricted facets, closed flag and box after the del3 changed. */
@@ -513,8 +583,10 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     sc->nold = st->nrf;
     st->nrf = 0;
 
-    /* the tets incident to v */
-    if ((s = as_del3_vertex_tets(st->d, st->vloc, &sc->tets)) != ANISTAR_OK) return s;
+    /* the tets incident to v, and the facets around v (one walk) */
+    if ((s = as_del3_vertex_tets_facets(st->d, st->vloc, &sc->tets, &sc->faces)) !=
+        ANISTAR_OK)
+        return s;
     const int32_t nprev = st->nitet, nnew = (int32_t)sc->tets.n;
     if ((s = grow_dbl(ctx, &st->isph, &st->cap_isph, 4 * nnew)) != ANISTAR_OK) return s;
     if ((s = grow_i32(ctx, &st->itet, &st->cap_itet, nnew)) != ANISTAR_OK) return s;
@@ -557,56 +629,11 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
     sc->sph_fresh = 1;
     memcpy(st->itet, sc->tets.a, (size_t)nnew * sizeof *st->itet);
     st->nitet = nnew;
-    if ((s = as_del3_vertex_facets(st->d, st->vloc, &sc->faces)) != ANISTAR_OK) return s;
+    for (int32_t i = 0; i < nnew; i++) sc->slot[st->itet[i]] = i; /* for tet_center */
+    s = update_facets(env, st, mf, sc);
+    for (int32_t i = 0; i < nnew; i++) sc->slot[st->itet[i]] = -1;
+    if (s != ANISTAR_OK) return s;
     const as_del3 *d = st->d;
-    const double *vx = as_star_xyz(st, env->xyz, st->gid);
-    for (size_t k = 0; k < sc->faces.n; k++) {
-        int32_t face = sc->faces.a[k];
-        int32_t t1 = face >> 2, t2 = as_del3_mirror(d, face) >> 2;
-        int in1, in2;
-        if ((s = tet_inside(env, sc, st, mf, t1, &in1)) != ANISTAR_OK) return s;
-        if ((s = tet_inside(env, sc, st, mf, t2, &in2)) != ANISTAR_OK) return s;
-        if (in1 == in2) continue;
-        as_gid g[3];
-        int32_t lv[3], n = 0;
-        for (int j = 0; j < 4; j++) {
-            if (j == (face & 3)) continue;
-            lv[n] = as_del3_tet_vertex(d, t1, j);
-            g[n] = (as_gid)d->gid[lv[n]];
-            n++;
-        }
-        as_sort_gid3(g);
-        if ((s = grow_rf(ctx, &st->rf, &st->cap_rf, st->nrf + 1)) != ANISTAR_OK) return s;
-        as_rfacet *f = &st->rf[st->nrf++];
-        int fresh = ((st->tflag[t1] | st->tflag[t2]) & TF_FRESH) != 0;
-        int32_t o = fresh ? -1 : find_in(sc->old, sc->nold, g);
-        if (o >= 0) {
-            *f = sc->old[o];
-            f->fresh = 0;
-            continue;
-        }
-        memset(f, 0, sizeof *f);
-        memcpy(f->g, g, sizeof g);
-        f->fresh = 1;
-        if (sc->probe) { /* the triple is all a probe asks: no crossing, no radius */
-            memcpy(f->c, vx, sizeof f->c);
-            continue;
-        }
-        /* design: dual segment between the two mapped circumcenters; the crossing nearest
-         * the facet's own circumcenter (DESIGN.md 4.4). */
-        double cc1[3], cc2[3], a[3], b[3], fcs[3], fc[3];
-        if (tet_center(st, t1, cc1) || tet_center(st, t2, cc2))
-            return as_fail(ctx, ANISTAR_EINTERNAL, "mesher: infinite tet beside a star center");
-        as_metric_unapply(mf, cc1, a);
-        as_metric_unapply(mf, cc2, b);
-        if (tri_circumcenter(as_del3_point(d, lv[0]), as_del3_point(d, lv[1]),
-                             as_del3_point(d, lv[2]), fcs) == 0)
-            as_metric_unapply(mf, fcs, fc);
-        else
-            for (int q = 0; q < 3; q++) fc[q] = 0.5 * (a[q] + b[q]);
-        if ((s = dual_crossing(env, sc, a, b, fc, f->c)) != ANISTAR_OK) return s;
-        f->r = as_metric_dist(mf, f->c, vx);
-    }
     /* sort by triple (insertion sort: tens of facets) */
     for (int32_t i = 1; i < st->nrf; i++) {
         as_rfacet x = st->rf[i];
@@ -622,8 +649,15 @@ static anistar_status star_update(const as_star_env *env, as_star *st, const as_
         st->closed = as_star_fan_closed(st->rf, st->nrf, st->gid);
         as_star_rezone(st, env->xyz, mf);
     }
-    /* the fresh marks served this update */
-    for (int32_t t = 0; t < d->nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
+    /* the fresh marks served this update (design: eight flags per step) */
+    size_t nt = (size_t)d->nt, t = 0;
+    for (; t + 8 <= nt; t += 8) {
+        uint64_t w;
+        memcpy(&w, st->tflag + t, sizeof w);
+        w &= ~(UINT64_C(0x0101010101010101) * TF_FRESH);
+        memcpy(st->tflag + t, &w, sizeof w);
+    }
+    for (; t < nt; t++) st->tflag[t] &= (uint8_t)~TF_FRESH;
     return ANISTAR_OK;
 }
 
@@ -640,6 +674,20 @@ static int scratch_fit32(anistar_context *ctx, void **p, int32_t *cap, size_t n,
     *cap = (int32_t)c;
     return 0;
 }
+
+/* tiny_handle[h]: the del3 handle 8t'+j of the tiny record's 10-bit field h = 4t'+j
+ * (design: one load per handle when unpacking, instead of masking and adding) */
+#define TH1(h) ((int32_t)((h) + ((h) & ~3)))
+#define TH4(h) TH1(h), TH1((h) + 1), TH1((h) + 2), TH1((h) + 3)
+#define TH16(h) TH4(h), TH4((h) + 4), TH4((h) + 8), TH4((h) + 12)
+#define TH64(h) TH16(h), TH16((h) + 16), TH16((h) + 32), TH16((h) + 48)
+#define TH256(h) TH64(h), TH64((h) + 64), TH64((h) + 128), TH64((h) + 192)
+static const int32_t tiny_handle[1024] = {TH256(0), TH256(256), TH256(512), TH256(768)};
+#undef TH256
+#undef TH64
+#undef TH16
+#undef TH4
+#undef TH1
 
 /* The packed record formats of a star's tets (see star.h): their sizes in bytes. */
 enum { FMT_WIDE = 0, FMT_NARROW = 1, FMT_TINY = 2 };
@@ -750,28 +798,65 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
     }
     as_del3 *d = &sc->work;
     const int32_t nv = unpack ? st->nv : 0, nt = unpack ? st->nt : 0;
+    /* the work still holds st as this scratch packed it (as_star_scratch, work_star) */
+    const int kept = unpack && nv && sc->work_star == st && st->pack_sc == (const void *)sc &&
+                     st->pack_serial == sc->serial && d->nv == nv && d->nt == nt &&
+                     env->xyz == sc->work_xyz && st->ovr == sc->work_ovr &&
+                     (!st->ovr || (st->ovr->gid == sc->work_ovr_copy.gid &&
+                                   memcmp(st->ovr->p, sc->work_ovr_copy.p,
+                                          sizeof st->ovr->p) == 0)) &&
+                     memcmp(mf->f, sc->work_f, sizeof sc->work_f) == 0;
+    sc->work_star = NULL; /* the work changes from here on; the points it will hold: */
+    memcpy(sc->work_f, mf->f, sizeof sc->work_f);
+    sc->work_xyz = env->xyz;
+    sc->work_ovr = st->ovr;
+    if (st->ovr) {
+        sc->work_ovr_copy.gid = st->ovr->gid;
+        memcpy(sc->work_ovr_copy.p, st->ovr->p, sizeof sc->work_ovr_copy.p);
+    }
     if (scratch_fit32(ctx, (void **)&sc->rf, &sc->cap_rf, (size_t)st->nrf, sizeof *sc->rf) ||
         scratch_fit32(ctx, (void **)&sc->itet, &sc->cap_itet, (size_t)st->nitet,
                       sizeof *sc->itet) ||
         scratch_fit(ctx, (void **)&sc->fsph, &sc->cap_fsph, 4 * (size_t)st->nitet,
                     sizeof *sc->fsph) ||
         scratch_fit(ctx, (void **)&sc->tflag, &sc->cap_tflag, (size_t)nt, 1) ||
-        (nv && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
+        (nv && !kept && as_del3_reserve(d, nv, nt) != ANISTAR_OK))
         return as_fail(ctx, ANISTAR_ENOMEM, "mesher: out of memory (star)");
-    as_del3_reset(d);
+    if (kept) {
+        /* what unpacking would write and an operation may have changed since */
+        d->boot[0] = d->boot[1] = d->boot[2] = -1;
+        d->removed.n = d->created.n = 0;
+        d->rebuilt = 0;
+        memset(&d->stats, 0, sizeof d->stats);
+        d->hint = st->hint;
+        d->rng = st->rng;
+    } else {
+        as_del3_reset(d);
+    }
     if (st->nrf) memcpy(sc->rf, st->rf, (size_t)st->nrf * sizeof *sc->rf);
     if (st->nitet) {
         memcpy(sc->itet, st->itet, (size_t)st->nitet * sizeof *sc->itet);
         memcpy(sc->fsph, st->fsph, 4 * (size_t)st->nitet * sizeof *sc->fsph);
     }
     if (nt) memcpy(sc->tflag, st->tflag, (size_t)nt);
-    if (nv) {
+    if (nv && !kept) {
+        /* the vertices: as_star_point and vtet_get, their branches taken once */
+        as_del3_vertex *vert = d->vert;
+        const as_gid *vg = st->vgid;
+        if (st->vx)
+            for (int32_t k = 0; k < nv; k++)
+                memcpy(vert[k].x, st->vx + 3 * (size_t)k, sizeof vert[k].x);
+        else
+            for (int32_t k = 0; k < nv; k++)
+                as_metric_apply(mf, as_star_xyz(st, env->xyz, vg[k]), vert[k].x);
+        if (st->fmt == FMT_TINY)
+            for (int32_t k = 0; k < nv; k++)
+                vert[k].tet = (int32_t)((const uint8_t *)st->vtet)[k] - 1;
+        else
+            for (int32_t k = 0; k < nv; k++) vert[k].tet = vtet_get(st, k);
         for (int32_t k = 0; k < nv; k++) {
-            as_del3_vertex *x = &d->vert[k];
-            as_star_point(st, env->xyz, mf, k, x->x);
-            x->tet = vtet_get(st, k);
-            x->loc = -1;
-            d->gid[k] = st->vgid[k];
+            vert[k].loc = -1;
+            d->gid[k] = vg[k];
         }
         if (st->fmt == FMT_TINY) { /* the common case, unrolled */
             const uint64_t *w = st->trec;
@@ -786,13 +871,11 @@ static anistar_status star_open(const as_star_env *env, as_star *st, const as_me
                 r[1] = (int32_t)((x >> 6) & 63) - 2;
                 r[2] = (int32_t)((x >> 12) & 63) - 2;
                 r[3] = (int32_t)((x >> 18) & 63) - 2;
-                /* handle 4t'+j (10 bits) -> 8t'+j: the bits above j shifted up by one */
-                uint32_t h0 = (uint32_t)(x >> 24) & 1023, h1 = (uint32_t)(x >> 34) & 1023;
-                uint32_t h2 = (uint32_t)(x >> 44) & 1023, h3 = (uint32_t)(x >> 54) & 1023;
-                r[4] = (int32_t)(h0 + (h0 & ~3u));
-                r[5] = (int32_t)(h1 + (h1 & ~3u));
-                r[6] = (int32_t)(h2 + (h2 & ~3u));
-                r[7] = (int32_t)(h3 + (h3 & ~3u));
+                /* handle 4t'+j (10 bits) -> 8t'+j (tiny_handle) */
+                r[4] = tiny_handle[(x >> 24) & 1023];
+                r[5] = tiny_handle[(x >> 34) & 1023];
+                r[6] = tiny_handle[(x >> 44) & 1023];
+                r[7] = tiny_handle[x >> 54];
             }
         } else if (st->fmt == FMT_NARROW) {
             const uint16_t *h = st->trec;
@@ -961,16 +1044,18 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
                 tet_put(trec, fmt, nt, t, r);
                 continue;
             }
-            uint64_t x = (uint64_t)(uint32_t)(r[0] + 2) | (uint64_t)(uint32_t)(r[1] + 2) << 6 |
-                         (uint64_t)(uint32_t)(r[2] + 2) << 12 |
-                         (uint64_t)(uint32_t)(r[3] + 2) << 18;
-            /* handle 8t'+j -> 4t'+j: the bits above j shifted down by one */
-            uint32_t h0 = (uint32_t)r[4], h1 = (uint32_t)r[5], h2 = (uint32_t)r[6];
-            uint32_t h3 = (uint32_t)r[7];
-            x |= (uint64_t)((h0 >> 1 & ~3u) | (h0 & 3)) << 24 |
-                 (uint64_t)((h1 >> 1 & ~3u) | (h1 & 3)) << 34 |
-                 (uint64_t)((h2 >> 1 & ~3u) | (h2 & 3)) << 44 |
-                 (uint64_t)((h3 >> 1 & ~3u) | (h3 & 3)) << 54;
+            /* design: the fields are disjoint, so they are summed: the vertex codes as
+             * r[i] << 6i plus the constant of the + 2s (modulo 2^64: the vertices are
+             * -2 .. 61, the total is the code), and the handle 8t'+j as 4t'+j =
+             * (8t'+j + j) / 2, its field h << 10i + 24 as (h + j) << 10i + 23 (h + j is
+             * even): fewer operations than masking each field */
+            uint64_t x = (uint64_t)(int64_t)r[0] + ((uint64_t)(int64_t)r[1] << 6) +
+                         ((uint64_t)(int64_t)r[2] << 12) + ((uint64_t)(int64_t)r[3] << 18) +
+                         (uint64_t)(2 + (2 << 6) + (2 << 12) + (2 << 18));
+            uint64_t h0 = (uint32_t)r[4], h1 = (uint32_t)r[5], h2 = (uint32_t)r[6];
+            uint64_t h3 = (uint32_t)r[7];
+            x += ((h0 + (h0 & 3)) << 23) + ((h1 + (h1 & 3)) << 33) + ((h2 + (h2 & 3)) << 43) +
+                 ((h3 + (h3 & 3)) << 53);
             w[t] = x;
         }
     } else if (fmt == FMT_NARROW) {
@@ -1020,6 +1105,11 @@ static anistar_status star_close(const as_star_env *env, as_star *st, as_star_sc
     st->hint = d->hint;
     st->rng = d->rng;
     if (nv) memcpy(st->fv, d->vert[st->vloc].x, sizeof st->fv);
+    /* the work keeps st's records: star_open may reuse them (as_star_scratch) */
+    sc->serial++;
+    st->pack_sc = sc;
+    st->pack_serial = sc->serial;
+    sc->work_star = nv ? st : NULL;
     return ANISTAR_OK;
 }
 

@@ -134,6 +134,10 @@ typedef struct as_star {
      * fsph[4i..4i+2], radius fsph[4i+3], -1: none): a proven filter in front of the exact
      * in-sphere test (as_star_conflicts; 16 bytes instead of 32 per incident tet) */
     float *fsph;
+    /* the close that made the packed block: the scratch and its count of closes then
+     * (star_open's reuse of the working triangulation, see as_star_scratch) */
+    const void *pack_sc;
+    uint64_t pack_serial;
 } as_star;
 
 /*
@@ -200,6 +204,19 @@ typedef struct as_star_scratch {
     /* env->memo: 2^AS_STAR_MEMO_BITS entries each (allocated at the first use) */
     as_star_memo_side *mside;
     as_star_memo_cross *mcross;
+    /* design: the working triangulation still holds the star this scratch packed last
+     * (work_star, NULL: none) until another star is opened here; when that star is
+     * opened again here unchanged (its pack_sc and pack_serial are this scratch's last
+     * close, with the same points: frame F, point array and override), star_open keeps
+     * the work as it is instead of unpacking: the same records bit for bit (a star
+     * growing in rounds of insertions and conflict tests is opened again right after
+     * each close) */
+    const as_star *work_star;
+    uint64_t serial; /* closes so far */
+    double work_f[9];
+    const double *work_xyz;
+    const as_star_ovr *work_ovr;
+    as_star_ovr work_ovr_copy;
 } as_star_scratch;
 
 void as_star_scratch_free(anistar_context *ctx, as_star_scratch *s);

@@ -284,10 +284,9 @@ static inline int cr_cand_before(const cr_cand *a, const cr_cand *b) {
     return a->seq < b->seq;
 }
 
-static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, double ub) {
-    double pa[3], pb[3], d[3], w[3];
-    cr_point(c, ua, pa);
-    cr_point(c, ub, pb);
+/* The distance from ref to the segment [pa, pb] (cr_piece_dist on the two points). */
+static double cr_seg_dist(const double pa[3], const double pb[3], const double ref[3]) {
+    double d[3], w[3];
     for (int i = 0; i < 3; i++) {
         d[i] = pb[i] - pa[i];
         w[i] = ref[i] - pa[i];
@@ -297,6 +296,13 @@ static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, d
     if (t > 1) t = 1;
     double q[3] = {pa[0] + t * d[0], pa[1] + t * d[1], pa[2] + t * d[2]};
     return sqrt(v3_dist2(q, ref));
+}
+
+static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, double ub) {
+    double pa[3], pb[3];
+    cr_point(c, ua, pa);
+    cr_point(c, ub, pb);
+    return cr_seg_dist(pa, pb, ref);
 }
 
 /* Add a candidate; when full, it replaces the farthest one if it is nearer. */
@@ -648,8 +654,14 @@ static anistar_status fs_crossing(anistar_context *ctx, const as_surface *s, con
     memset(have, 0, sizeof have);
     memset(done, 0, sizeof done);
 #define CR_BASE_U(k) (ub[k])
+    /* design: a piece's start is the previous piece's end: each lattice point is mapped
+     * once (cr_point: the same numbers cr_piece_dist maps) */
+    double pprev[3], pnext[3];
+    cr_point(&c, CR_BASE_U(0), pprev);
     for (int i = 1; i <= npieces; i++) { /* pieces by (distance, index): insertion sort */
-        pd[i] = cr_piece_dist(&c, ref, CR_BASE_U(i - 1), CR_BASE_U(i));
+        cr_point(&c, CR_BASE_U(i), pnext);
+        pd[i] = cr_seg_dist(pprev, pnext, ref);
+        memcpy(pprev, pnext, sizeof pprev);
         int j = i - 1;
         while (j > 0 && !full && pd[order[j - 1]] > pd[i]) {
             order[j] = order[j - 1];

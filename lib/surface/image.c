@@ -198,9 +198,10 @@ anistar_status as_image_surface_from_array_fit(anistar_context *ctx, const doubl
 
 /* as_image_surface_lattice (surface.h). design: f at the lattice nodes, two z-layers at a
  * time (the nodes of layer z and z + 1: the image grid's and PAD + 1 more on every side,
- * (nx + 12)(ny + 12) values each), so memory stays O(nx ny) whatever the image; an edge whose ends have opposite signs (f >= 0 against
- * f < 0, the sign convention of the sampler) holds a crossing, solved by
- * as_surface_crossing between its ends. The points grow in a doubling array. */
+ * (nx + 12)(ny + 12) values each), so memory stays O(nx ny) whatever the image; an edge
+ * whose ends have opposite signs (f >= 0 against f < 0, the sign convention of the
+ * sampler) holds a crossing, solved by as_surface_crossing between its ends. The points
+ * grow in a doubling array. */
 anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *s, double **xyz,
                                         size_t *n, double *voxel) {
     *xyz = NULL;

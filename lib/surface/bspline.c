@@ -612,6 +612,7 @@ static void as_layers_plane(as_bspline_layers *L, ptrdiff_t p) {
                      *r3 = L->sx + (size_t)yidx[4 * j + 3] * lx;
         double *o = out + j * lx;
         for (size_t i = 0; i < lx; i++) {
+            if (!xok[i]) continue; /* its x sums were not computed (nor read later) */
             double s = 0;
             s += y->w[0] * r0[i];
             s += y->w[1] * r1[i];

@@ -680,6 +680,99 @@ static void test_errors(void **state) {
     fx_free(f);
 }
 
+/* ---- the lattice layers and the inner kernel --------------------------------------- */
+
+static int same_bits(double a, double b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+/* as_bspline_layers gives, to the bit, as_bspline_value at each node's world point, on
+ * axis-aligned grids (flipped axes, spacings and origins that do not round-trip exactly,
+ * sizes 1 to 3 along an axis); a rotated grid gets no layers. */
+static void test_layers_match_values(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {7};
+    static const size_t dims[][3] = {{13, 11, 9}, {1, 5, 3}, {2, 1, 1}, {1, 1, 1}, {4, 3, 7}};
+    const double sp[3] = {0.3, 1.23438, 2.66666}, org[3] = {32.0938, -0.1, 0};
+    const double flip[9] = {-1, 0, 0, 0, 1, 0, 0, 0, -1};
+    for (size_t t = 0; t < sizeof dims / sizeof dims[0]; t++)
+        for (int fl = 0; fl < 2; fl++) {
+            as_image *img = random_image(f, dims[t][0], dims[t][1], dims[t][2], -1, 2, sp, org,
+                                         fl ? flip : NULL, &rng);
+            as_bspline *bs;
+            assert_int_equal(as_bspline_create(f->ctx, img, -0.37, &bs), ANISTAR_OK);
+            as_bspline_layers *L = NULL;
+            assert_int_equal(as_bspline_layers_new(f->ctx, bs, &L), ANISTAR_OK);
+            assert_non_null(L);
+            /* the nodes: the padded grid's voxel centers and one more on every side */
+            const as_grid *pg = as_bspline_padded_grid(bs);
+            assert_true(pg->n[0] == dims[t][0] + 2 * AS_BSPLINE_PAD);
+            const size_t lx = pg->n[0] + 2, ly = pg->n[1] + 2, lz = pg->n[2] + 2;
+            double *out = malloc(lx * ly * sizeof *out);
+            assert_non_null(out);
+            for (size_t k = 0; k < lz; k++) {
+                as_bspline_layers_get(L, k, out);
+                for (size_t j = 0; j < ly; j++)
+                    for (size_t i = 0; i < lx; i++) {
+                        double p[3], v[3] = {(double)i - 1, (double)j - 1, (double)k - 1};
+                        as_grid_voxel_to_world(pg, v, p);
+                        assert_true(same_bits(out[j * lx + i], as_bspline_value(bs, p)));
+                    }
+            }
+            free(out);
+            as_bspline_layers_free(f->ctx, L);
+            as_bspline_free(f->ctx, bs);
+            as_image_free(f->ctx, img);
+        }
+    double rot[9];
+    rotation(1, -2, 0.5, 0.9, rot);
+    as_image *img = random_image(f, 5, 4, 3, -1, 2, sp, org, rot, &rng);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0, &bs), ANISTAR_OK);
+    as_bspline_layers *L = (as_bspline_layers *)&rng; /* must be set to NULL */
+    assert_int_equal(as_bspline_layers_new(f->ctx, bs, &L), ANISTAR_OK);
+    assert_null(L);
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
+/* Value, gradient and Hessian entry points return the same value to the bit, and the
+ * world ones the same gradient, at points where all 64 coefficients are stored (the
+ * inner kernel), at the border and beyond it (the general path). */
+static void test_inner_kernel_bits(void **state) {
+    (void)state;
+    fixture *f = fx_new();
+    tu_rng rng = {11};
+    const double sp[3] = {1, 1, 1}, org[3] = {0, 0, 0};
+    as_image *img = random_image(f, 9, 8, 7, -1, 2, sp, org, NULL, &rng);
+    as_bspline *bs;
+    assert_int_equal(as_bspline_create(f->ctx, img, 0.5, &bs), ANISTAR_OK);
+    for (int it = 0; it < 20000; it++) {
+        double v[3];
+        for (int a = 0; a < 3; a++) {
+            double n = (double)img->nx * (a == 0) + (double)img->ny * (a == 1) +
+                       (double)img->nz * (a == 2);
+            /* about the stored grid's ends (the image's grown by the pad): inner kernel
+             * on one side, the general path on the other */
+            double e = tu_rng_range(&rng, 0, 1) < 0.5
+                           ? floor(tu_rng_range(&rng, 0, 4)) - 1 - AS_BSPLINE_PAD
+                           : n - 3 + AS_BSPLINE_PAD + floor(tu_rng_range(&rng, 0, 4));
+            v[a] = it % 3 == 0 ? e : e + tu_rng_range(&rng, -0.5, 0.5);
+        }
+        double g[3], h[6], p[3], g1[3], g2[3], h2[6];
+        double f0 = as_bspline_value_voxel(bs, v), f2 = as_bspline_value_grad_hess_voxel(bs, v, g, h);
+        assert_true(same_bits(f0, f2));
+        as_grid_voxel_to_world(as_bspline_grid(bs), v, p);
+        double w0 = as_bspline_value(bs, p), w1 = as_bspline_value_grad(bs, p, g1),
+               w2 = as_bspline_value_grad_hess(bs, p, g2, h2);
+        assert_true(same_bits(w0, w1) && same_bits(w0, w2));
+        for (int i = 0; i < 3; i++) assert_true(same_bits(g1[i], g2[i]));
+    }
+    as_bspline_free(f->ctx, bs);
+    as_image_free(f->ctx, img);
+    fx_free(f);
+}
+
 static void test_alloc_failures(void **state) {
     (void)state;
     long fail_at;
@@ -697,6 +790,20 @@ static void test_alloc_failures(void **state) {
             if (st == ANISTAR_OK) {
                 double p[3] = {100, 120, 80};
                 assert_true(isfinite(as_bspline_value(bs, p)));
+                as_bspline_layers *L = NULL;
+                st = as_bspline_layers_new(ctx, bs, &L);
+                if (st == ANISTAR_OK) {
+                    assert_non_null(L);
+                    const as_grid *pg = as_bspline_padded_grid(bs);
+                    double *row = malloc((pg->n[0] + 2) * (pg->n[1] + 2) * sizeof *row);
+                    assert_non_null(row);
+                    as_bspline_layers_get(L, 3, row);
+                    assert_true(isfinite(row[0]));
+                    free(row);
+                } else {
+                    assert_null(L);
+                }
+                as_bspline_layers_free(ctx, L);
                 as_bspline_free(ctx, bs);
             } else {
                 assert_null(bs);
@@ -727,6 +834,8 @@ int main(void) {
         cmocka_unit_test(test_border_surface_closes),
         cmocka_unit_test(test_smoothing_fit),
         cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_layers_match_values),
+        cmocka_unit_test(test_inner_kernel_bits),
         cmocka_unit_test(test_alloc_failures),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

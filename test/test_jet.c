@@ -584,6 +584,30 @@ static void test_blend_errors(void **state) {
     assert_int_equal(as_blend_default_radius(ctx, kd, g, 100, 1, &rb), ANISTAR_OK);
     assert_true(fabs(rb - 0.5) < 1e-15);
     assert_int_equal(as_blend_default_radius(ctx, kd, g, 1, 1, &rb), ANISTAR_EINVAL);
+    /* the kept lists are the keep_k-nearest queries' answers, ties (the grid is full of
+     * them) broken by id the same way; on 100 points and on the first 5 (fewer than
+     * keep_k); the radius is the same */
+    static const size_t sizes[2] = {100, 5};
+    for (int c = 0; c < 2; c++) {
+        const size_t n = sizes[c];
+        as_kdtree *kn;
+        assert_int_equal(as_kdtree_build(ctx, g, NULL, n, &kn), ANISTAR_OK);
+        int32_t keep[100 * 9], ids[9];
+        uint8_t kept[100];
+        double d2[9], r0, r1;
+        assert_int_equal(as_blend_default_radius(ctx, kn, g, n, 16, &r0), ANISTAR_OK);
+        assert_int_equal(as_blend_default_radius_keep(ctx, kn, g, n, 16, &r1, keep, 9, kept),
+                         ANISTAR_OK);
+        assert_true(r0 == r1);
+        for (size_t v = 0; v < n; v++) {
+            size_t got = as_kdtree_knn(kn, g + 3 * v, 9, ids, d2);
+            assert_int_equal(kept[v], got);
+            for (size_t i = 0; i < got; i++) assert_int_equal(keep[9 * v + i], ids[i]);
+        }
+        assert_int_equal(as_blend_default_radius_keep(ctx, kn, g, n, 7, &r1, keep, 9, kept),
+                         ANISTAR_EINVAL);
+        as_kdtree_free(ctx, kn);
+    }
     double t[6 * 100];
     for (int i = 0; i < 100; i++) {
         double m[6] = {1, 0, 0, 1, 0, 1};

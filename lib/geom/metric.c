@@ -49,14 +49,16 @@ static int as_metric_e_valid(const double e[3]) {
  *   2. e = sqrt(lambda); validate (as_metric_e_valid).
  *   3. F = U diag(e) U^T, F^-1 = U diag(1/e) U^T; mf->m keeps the caller's M bit for bit.
  */
+int as_metric_frame_eigen(const double m[6], double e[3], double u[9]) {
+    double w[3];
+    if (as_sym3_eigen(m, w, u) || !(w[0] > 0)) return -1;
+    for (int k = 0; k < 3; k++) e[k] = sqrt(w[k]);
+    return as_metric_e_valid(e) ? 0 : -1;
+}
+
 int as_metric_frame_init(as_metric_frame *mf, const double m[6]) {
-    double w[3], u[9];
-    if (as_sym3_eigen(m, w, u) || !(w[0] > 0)) {
-        memset(mf, 0, sizeof *mf);
-        return -1;
-    }
-    double e[3] = {sqrt(w[0]), sqrt(w[1]), sqrt(w[2])};
-    if (!as_metric_e_valid(e)) {
+    double e[3], u[9];
+    if (as_metric_frame_eigen(m, e, u)) {
         memset(mf, 0, sizeof *mf);
         return -1;
     }

@@ -22,6 +22,11 @@ typedef struct as_metric_frame {
  * as_sym3_eigen. mf->m is M bit for bit; F^T F = M to ~1e-15 |M|. Every valid frame
  * (from either constructor) has max e / min e <= 1e12. */
 int as_metric_frame_init(as_metric_frame *mf, const double m[6]);
+/* The test of as_metric_frame_init alone: 0 with F's eigenvalues e (ascending) and the
+ * eigenvectors u (u + 3*k for e[k]) that a frame of M would hold, or -1 where
+ * as_metric_frame_init fails (without F and F^-1: a validity check costs one
+ * eigendecomposition and no more). */
+int as_metric_frame_eigen(const double m[6], double e[3], double u[9]);
 
 /* Fill mf from an orthonormal frame u (u + 3*k unit vectors) and F's eigenvalues e > 0
  * (M = U diag(e^2) U^T); the pairs (e[k], u + 3k) are sorted ascending into mf. Returns 0,

@@ -125,12 +125,6 @@ void as_grid_voxel_to_world(const as_grid *g, const double v[3], double p[3]) {
             g->origin[r] + (g->a[3 * r] * v[0] + g->a[3 * r + 1] * v[1] + g->a[3 * r + 2] * v[2]);
 }
 
-void as_grid_world_to_voxel(const as_grid *g, const double p[3], double v[3]) {
-    double d[3] = {p[0] - g->origin[0], p[1] - g->origin[1], p[2] - g->origin[2]};
-    for (int r = 0; r < 3; r++)
-        v[r] = g->ainv[3 * r] * d[0] + g->ainv[3 * r + 1] * d[1] + g->ainv[3 * r + 2] * d[2];
-}
-
 static void as_grid_corner(const as_grid *g, double margin, int corner, double p[3]) {
     double v[3];
     for (int i = 0; i < 3; i++) v[i] = (corner >> i & 1) ? (double)(g->n[i] - 1) + margin : -margin;

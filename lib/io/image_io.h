@@ -76,7 +76,12 @@ typedef struct as_grid {
 
 /* Voxel coordinates v (voxel (i,j,k)'s center is v = (i,j,k)) to world p, and back. */
 void as_grid_voxel_to_world(const as_grid *g, const double v[3], double p[3]);
-void as_grid_world_to_voxel(const as_grid *g, const double p[3], double v[3]);
+/* Inline: every B-spline evaluation of an image surface starts here. */
+static inline void as_grid_world_to_voxel(const as_grid *g, const double p[3], double v[3]) {
+    double d[3] = {p[0] - g->origin[0], p[1] - g->origin[1], p[2] - g->origin[2]};
+    for (int r = 0; r < 3; r++)
+        v[r] = g->ainv[3 * r] * d[0] + g->ainv[3 * r + 1] * d[1] + g->ainv[3 * r + 2] * d[2];
+}
 
 /* The axis-aligned world box of the voxel-coordinate box [-margin, n-1+margin] per axis
  * (margin in voxels, >= 0; margin 0 is the box of the voxel centers, 0.5 the box of the

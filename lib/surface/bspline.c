@@ -37,6 +37,7 @@ struct as_bspline {
     double coef_max;
     double shell[3][AS_BSPLINE_PAD + 1]; /* as_bspline_margin: max |c| k+ voxels outside */
     double zpow[AS_BSPLINE_REACH + 4]; /* z^d, d = 0 .. REACH+3 */
+    double inner_hi[3];                /* n - 2 per axis: as_inner3 */
 };
 
 /* ---- prefilter ---------------------------------------------------------------------- */
@@ -160,6 +161,7 @@ anistar_status as_bspline_create_fit(anistar_context *ctx, const as_image *img,
     bs->stride[0] = 1;
     bs->stride[1] = (ptrdiff_t)Nx;
     bs->stride[2] = (ptrdiff_t)(Nx * Ny);
+    for (int a = 0; a < 3; a++) bs->inner_hi[a] = (double)(bs->n[a] - 2);
     bs->zpow[0] = 1.0;
     for (int d = 1; d < AS_BSPLINE_REACH + 4; d++) bs->zpow[d] = bs->zpow[d - 1] * AS_BSPLINE_POLE;
 
@@ -243,6 +245,7 @@ void as_bspline_free(anistar_context *ctx, as_bspline *bs) {
 }
 
 const as_grid *as_bspline_grid(const as_bspline *bs) { return &bs->image; }
+const as_grid *as_bspline_padded_grid(const as_bspline *bs) { return &bs->grid; }
 int as_bspline_fit(const as_bspline *bs) { return bs->fit; }
 double as_bspline_background(const as_bspline *bs) { return bs->background; }
 double as_bspline_coef_max(const as_bspline *bs) { return bs->coef_max; }
@@ -290,18 +293,10 @@ BS_INLINE double as_floor_small(double t) {
     return f > t ? f - 1.0 : f;
 }
 
-/*
- * Prepare axis a at voxel coordinate t (finite). Returns 0 when t lies more than
- * AS_BSPLINE_REACH voxels outside [0, n-1] (the value is then the background).
- * design: knots at the integers; t = floor(t) + u, the four coefficients
- *   floor(t)-1 .. floor(t)+2 with the cubic B-spline pieces at u (and their derivatives);
- *   an index outside [0, n-1] reads the clamped coefficient times z^distance.
- */
-BS_INLINE int as_axis_prepare(const as_bspline *bs, int a, double t, int order, as_axis *ax) {
-    const ptrdiff_t n = bs->n[a];
-    if (!(t >= -(double)AS_BSPLINE_REACH && t <= (double)(n - 1) + AS_BSPLINE_REACH)) return 0;
-    double fl = as_floor_small(t), u = t - fl, u2 = u * u, u3 = u2 * u, m = 1.0 - u;
-    ptrdiff_t i0 = (ptrdiff_t)fl - 1;
+/* The four cubic B-spline pieces at u in [0, 1] (the weights of the coefficients
+ * floor(t)-1 .. floor(t)+2) and their derivatives up to `order`. */
+BS_INLINE void as_pieces(double u, int order, as_axis *ax) {
+    double u2 = u * u, u3 = u2 * u, m = 1.0 - u;
     ax->w[0] = m * m * m * (1.0 / 6.0);
     ax->w[1] = (2.0 / 3.0) - u2 + 0.5 * u3;
     ax->w[2] = (1.0 / 6.0) + 0.5 * (u + u2 - u3);
@@ -318,6 +313,21 @@ BS_INLINE int as_axis_prepare(const as_bspline *bs, int a, double t, int order, 
         ax->d2[2] = 1.0 - 3.0 * u;
         ax->d2[3] = u;
     }
+}
+
+/*
+ * Prepare axis a at voxel coordinate t (finite). Returns 0 when t lies more than
+ * AS_BSPLINE_REACH voxels outside [0, n-1] (the value is then the background).
+ * design: knots at the integers; t = floor(t) + u, the four coefficients
+ *   floor(t)-1 .. floor(t)+2 with the cubic B-spline pieces at u (and their derivatives);
+ *   an index outside [0, n-1] reads the clamped coefficient times z^distance.
+ */
+BS_INLINE int as_axis_prepare(const as_bspline *bs, int a, double t, int order, as_axis *ax) {
+    const ptrdiff_t n = bs->n[a];
+    if (!(t >= -(double)AS_BSPLINE_REACH && t <= (double)(n - 1) + AS_BSPLINE_REACH)) return 0;
+    double fl = as_floor_small(t), u = t - fl;
+    ptrdiff_t i0 = (ptrdiff_t)fl - 1;
+    as_pieces(u, order, ax);
     const ptrdiff_t s = bs->stride[a];
     if (i0 >= 0 && i0 + 3 < n) {
         ax->inner = 1;
@@ -346,6 +356,107 @@ BS_INLINE int as_axis_prepare(const as_bspline *bs, int a, double t, int order, 
     return 1;
 }
 
+/* ---- the inner kernel: the 4x4x4 block inside the grid ----------------------------- */
+
+/* v lies where all 64 coefficients are stored: 1 <= v[a] < n[a] - 2 on every axis (then
+ * floor(v[a]) - 1 >= 0 and floor(v[a]) + 2 <= n[a] - 1, as_axis_prepare's `inner`).
+ * False for NaN. */
+BS_INLINE int as_inner3(const as_bspline *bs, const double v[3]) {
+    return v[0] >= 1.0 && v[0] < bs->inner_hi[0] && v[1] >= 1.0 && v[1] < bs->inner_hi[1] &&
+           v[2] >= 1.0 && v[2] < bs->inner_hi[2];
+}
+
+/* One inner axis at t (1 <= t < n - 2): the pieces and the index floor(t) - 1. There
+ * t > 0, so the conversion's truncation is floor(t) (as_floor_small's value). */
+BS_INLINE ptrdiff_t as_inner_axis(double t, int order, as_axis *ax) {
+    long long i = (long long)t;
+    as_pieces(t - (double)i, order, ax);
+    return (ptrdiff_t)i - 1;
+}
+
+/* The x sums of one row of four contiguous coefficients: s[0] value, s[1] d/dx,
+ * s[2] d2/dx2 (up to `order`). */
+BS_INLINE void as_row_sums(const double *r, const as_axis *x, int order, double s[3]) {
+    const double c0 = r[0], c1 = r[1], c2 = r[2], c3 = r[3];
+    s[0] = x->w[0] * c0 + x->w[1] * c1 + x->w[2] * c2 + x->w[3] * c3;
+    if (order >= 1) s[1] = x->d1[0] * c0 + x->d1[1] * c1 + x->d1[2] * c2 + x->d1[3] * c3;
+    if (order >= 2) s[2] = x->d2[0] * c0 + x->d2[1] * c1 + x->d2[2] * c2 + x->d2[3] * c3;
+}
+
+/* Row b of a plane into the plane's y sums t = (t0, tx, ty, txx, txy, tyy). */
+BS_INLINE void as_plane_row(const double *r, const as_axis *x, const as_axis *y, int b, int order,
+                            double t[6]) {
+    double s[3];
+    as_row_sums(r, x, order, s);
+    t[0] += y->w[b] * s[0];
+    if (order >= 1) {
+        t[1] += y->w[b] * s[1];
+        t[2] += y->d1[b] * s[0];
+    }
+    if (order >= 2) {
+        t[3] += y->w[b] * s[2];
+        t[4] += y->d1[b] * s[1];
+        t[5] += y->d2[b] * s[0];
+    }
+}
+
+/* Plane c (its first row at pl, rows sy apart) into the z sums
+ * acc = (f, fx, fy, fz, fxx, fxy, fxz, fyy, fyz, fzz). */
+BS_INLINE void as_block_plane(const double *pl, ptrdiff_t sy, const as_axis *x, const as_axis *y,
+                              const as_axis *z, int c, int order, double acc[10]) {
+    double t[6] = {0, 0, 0, 0, 0, 0};
+    as_plane_row(pl, x, y, 0, order, t);
+    as_plane_row(pl + sy, x, y, 1, order, t);
+    as_plane_row(pl + 2 * sy, x, y, 2, order, t);
+    as_plane_row(pl + 3 * sy, x, y, 3, order, t);
+    acc[0] += z->w[c] * t[0];
+    if (order >= 1) {
+        acc[1] += z->w[c] * t[1];
+        acc[2] += z->w[c] * t[2];
+        acc[3] += z->d1[c] * t[0];
+    }
+    if (order >= 2) {
+        acc[4] += z->w[c] * t[3];
+        acc[5] += z->w[c] * t[4];
+        acc[6] += z->d1[c] * t[1];
+        acc[7] += z->w[c] * t[5];
+        acc[8] += z->d1[c] * t[2];
+        acc[9] += z->d2[c] * t[0];
+    }
+}
+
+/*
+ * Value and voxel derivatives up to `order` at an inner v (as_inner3): returns f and
+ * fills g[3] (order >= 1) and h[6] (order 2).
+ * design: the same operations in the same order as the general path (as_eval_voxel,
+ *   as_bspline_value_voxel: x sums per row, y sums per plane from 0, z sums from 0), so
+ *   the results are the same to the bit; what it saves is the range tests, the offset
+ *   tables and the loop control: the 4x4x4 block is read from one base pointer and the
+ *   loops are written out (value 684 -> 420 instructions, value and gradient
+ *   1134 -> 730, with the Hessian 1899 -> 1780).
+ */
+BS_INLINE double as_eval_inner(const as_bspline *bs, const double v[3], int order, double g[3],
+                               double h[6]) {
+    as_axis x, y, z;
+    ptrdiff_t ix = as_inner_axis(v[0], order, &x), iy = as_inner_axis(v[1], order, &y),
+              iz = as_inner_axis(v[2], order, &z);
+    const ptrdiff_t sy = bs->stride[1], sz = bs->stride[2];
+    const double *p = bs->coef + ix + iy * sy + iz * sz;
+    double acc[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    as_block_plane(p, sy, &x, &y, &z, 0, order, acc);
+    as_block_plane(p + sz, sy, &x, &y, &z, 1, order, acc);
+    as_block_plane(p + 2 * sz, sy, &x, &y, &z, 2, order, acc);
+    as_block_plane(p + 3 * sz, sy, &x, &y, &z, 3, order, acc);
+    if (order >= 1) {
+        g[0] = acc[1];
+        g[1] = acc[2];
+        g[2] = acc[3];
+    }
+    if (order >= 2)
+        for (int i = 0; i < 6; i++) h[i] = acc[4 + i];
+    return bs->background + acc[0];
+}
+
 /* The four coefficients of a row along x: contiguous when the x axis is inside the grid
  * (the common case: the compiler then loads them without the offset table). */
 #define AS_ROW4(row, x, c0, c1, c2, c3)                                                        \
@@ -370,6 +481,7 @@ static inline int as_finite3(const double v[3]) {
 
 /* f at padded voxel coordinates v (image coordinates + AS_BSPLINE_PAD). */
 static double as_value_padded(const as_bspline *bs, const double v[3]) {
+    if (as_inner3(bs, v)) return as_eval_inner(bs, v, 0, NULL, NULL);
     if (!as_finite3(v)) return NAN;
     as_axis x, y, z;
     if (!as_axis_prepare(bs, 0, v[0], 0, &x) || !as_axis_prepare(bs, 1, v[1], 0, &y) ||
@@ -398,6 +510,7 @@ static double as_value_padded(const as_bspline *bs, const double v[3]) {
  */
 BS_INLINE double as_eval_voxel(const as_bspline *bs, const double v[3], int order, double g[3],
                                double h[6]) {
+    if (as_inner3(bs, v)) return as_eval_inner(bs, v, order, g, h);
     if (!as_finite3(v)) {
         for (int i = 0; i < 3; i++) g[i] = NAN;
         if (order >= 2)
@@ -515,4 +628,151 @@ double as_bspline_value_grad_hess(const as_bspline *bs, const double p[3], doubl
     as_grad_to_world(bs->grid.ainv, gv, g);
     as_hess_to_world(bs->grid.ainv, hv, h);
     return f;
+}
+
+/* ---- values on the lattice of voxel centers ----------------------------------------- */
+
+struct as_bspline_layers {
+    const as_bspline *bs;
+    size_t l[3];             /* nodes per axis: n + 2 */
+    as_axis *ax;             /* l[0] + l[1] + l[2] prepared axes: x nodes, y nodes, z nodes */
+    unsigned char *ok;       /* as_axis_prepare's answer for each */
+    ptrdiff_t *idx;          /* the 4 coefficient indices (along the axis) of each */
+    double *sx;              /* n[1] x l[0]: x sums of one plane's rows */
+    double *sy[4];           /* l[1] x l[0] y sums of plane p, in slot p % 4 */
+    ptrdiff_t slot_plane[4]; /* the plane in each slot, -1 for none */
+    size_t naxes, nsx, nsy;
+};
+
+void as_bspline_layers_free(anistar_context *ctx, as_bspline_layers *L) {
+    if (!L) return;
+    as_free(ctx, L->ax, L->naxes * sizeof *L->ax);
+    as_free(ctx, L->ok, L->naxes);
+    as_free(ctx, L->idx, L->naxes * 4 * sizeof *L->idx);
+    as_free(ctx, L->sx, L->nsx * sizeof(double));
+    for (int s = 0; s < 4; s++) as_free(ctx, L->sy[s], L->nsy * sizeof(double));
+    as_free(ctx, L, sizeof *L);
+}
+
+anistar_status as_bspline_layers_new(anistar_context *ctx, const as_bspline *bs,
+                                     as_bspline_layers **out) {
+    *out = NULL;
+    const as_grid *g = &bs->grid;
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            if (r != c && (g->a[3 * r + c] != 0 || g->ainv[3 * r + c] != 0))
+                return ANISTAR_OK; /* not axis-aligned: no separable lattice */
+    as_bspline_layers *L = as_alloc(ctx, sizeof *L);
+    if (!L) return as_fail(ctx, ANISTAR_ENOMEM, "B-spline lattice: out of memory");
+    memset(L, 0, sizeof *L);
+    L->bs = bs;
+    for (int a = 0; a < 3; a++) L->l[a] = (size_t)bs->n[a] + 2;
+    L->naxes = L->l[0] + L->l[1] + L->l[2];
+    int bad = as_mul_size(L->l[0], L->l[1], &L->nsy) ||
+              as_mul_size(L->l[0], (size_t)bs->n[1], &L->nsx);
+    if (!bad) {
+        L->ax = as_alloc_array(ctx, L->naxes, sizeof *L->ax);
+        L->ok = as_alloc(ctx, L->naxes);
+        L->idx = as_alloc_array(ctx, L->naxes, 4 * sizeof *L->idx);
+        L->sx = as_alloc_array(ctx, L->nsx, sizeof(double));
+        for (int s = 0; s < 4; s++) L->sy[s] = as_alloc_array(ctx, L->nsy, sizeof(double));
+    }
+    if (bad || !L->ax || !L->ok || !L->idx || !L->sx || !L->sy[0] || !L->sy[1] || !L->sy[2] ||
+        !L->sy[3]) {
+        as_bspline_layers_free(ctx, L);
+        return as_fail(ctx, ANISTAR_ENOMEM, "B-spline lattice: out of memory");
+    }
+    /* design: node m of axis a is voxel coordinate m - 1, but the value the lattice must
+     * reproduce is as_bspline_value at the node's WORLD point, whose voxel coordinates
+     * come back from the round trip voxel -> world -> voxel rounded (m - 1 plus or minus
+     * an ulp shifts the cell). With A and A^-1 diagonal, coordinate a of the round trip
+     * depends on coordinate a alone (the other terms add exact zeros; a zero's sign does
+     * not change the pieces: -0 - -0 = +0), so one round trip per node and axis gives
+     * every node's axes. */
+    size_t k = 0;
+    for (int a = 0; a < 3; a++)
+        for (size_t m = 0; m < L->l[a]; m++, k++) {
+            double v[3] = {(double)m - 1, (double)m - 1, (double)m - 1}, p[3], w[3];
+            as_grid_voxel_to_world(g, v, p);
+            as_grid_world_to_voxel(g, p, w);
+            L->ok[k] = (unsigned char)as_axis_prepare(bs, a, w[a], 0, &L->ax[k]);
+            for (int b = 0; b < 4; b++)
+                L->idx[4 * k + b] = L->ok[k] ? L->ax[k].off[b] / bs->stride[a] : 0;
+        }
+    for (int s = 0; s < 4; s++) L->slot_plane[s] = -1;
+    *out = L;
+    return ANISTAR_OK;
+}
+
+/* The y sums of plane p (every node (i, j)) into slot p % 4. */
+static void as_layers_plane(as_bspline_layers *L, ptrdiff_t p) {
+    const as_bspline *bs = L->bs;
+    const size_t lx = L->l[0], ly = L->l[1], ny = (size_t)bs->n[1], nx = (size_t)bs->n[0];
+    const as_axis *xa = L->ax, *ya = L->ax + lx;
+    const unsigned char *xok = L->ok, *yok = L->ok + lx;
+    const ptrdiff_t *yidx = L->idx + 4 * lx;
+    const double *plane = bs->coef + p * bs->stride[2];
+    for (size_t r = 0; r < ny; r++) { /* the x sums of every row */
+        const double *row = plane + r * nx;
+        double *o = L->sx + r * lx;
+        for (size_t i = 0; i < lx; i++) {
+            if (!xok[i]) continue;
+            const as_axis *x = &xa[i];
+            o[i] = x->w[0] * row[x->off[0]] + x->w[1] * row[x->off[1]] +
+                   x->w[2] * row[x->off[2]] + x->w[3] * row[x->off[3]];
+        }
+    }
+    double *out = L->sy[p % 4];
+    for (size_t j = 0; j < ly; j++) { /* their y sums, from 0 as in a single value */
+        if (!yok[j]) continue;
+        const as_axis *y = &ya[j];
+        const double *r0 = L->sx + (size_t)yidx[4 * j] * lx,
+                     *r1 = L->sx + (size_t)yidx[4 * j + 1] * lx,
+                     *r2 = L->sx + (size_t)yidx[4 * j + 2] * lx,
+                     *r3 = L->sx + (size_t)yidx[4 * j + 3] * lx;
+        double *o = out + j * lx;
+        for (size_t i = 0; i < lx; i++) {
+            if (!xok[i]) continue; /* its x sums were not computed (nor read later) */
+            double s = 0;
+            s += y->w[0] * r0[i];
+            s += y->w[1] * r1[i];
+            s += y->w[2] * r2[i];
+            s += y->w[3] * r3[i];
+            o[i] = s;
+        }
+    }
+    L->slot_plane[p % 4] = p;
+}
+
+void as_bspline_layers_get(as_bspline_layers *L, size_t k, double *out) {
+    const as_bspline *bs = L->bs;
+    const size_t lx = L->l[0], ly = L->l[1], kz = lx + ly + k;
+    const unsigned char *xok = L->ok, *yok = L->ok + lx;
+    if (!L->ok[kz]) {
+        for (size_t q = 0; q < lx * ly; q++) out[q] = bs->background;
+        return;
+    }
+    const as_axis *z = &L->ax[kz];
+    /* design: the four planes of a layer are consecutive (clamped) indices, so their
+     * slots p % 4 differ and filling one never evicts another of the same layer */
+    const double *s[4];
+    for (int c = 0; c < 4; c++) {
+        ptrdiff_t p = L->idx[4 * kz + c];
+        if (L->slot_plane[p % 4] != p) as_layers_plane(L, p);
+    }
+    for (int c = 0; c < 4; c++) s[c] = L->sy[L->idx[4 * kz + c] % 4];
+    for (size_t j = 0; j < ly; j++)
+        for (size_t i = 0; i < lx; i++) {
+            size_t q = j * lx + i;
+            if (!xok[i] || !yok[j]) {
+                out[q] = bs->background;
+                continue;
+            }
+            double sum = 0;
+            sum += z->w[0] * s[0][q];
+            sum += z->w[1] * s[1][q];
+            sum += z->w[2] * s[2][q];
+            sum += z->w[3] * s[3][q];
+            out[q] = bs->background + sum;
+        }
 }

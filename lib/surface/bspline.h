@@ -126,9 +126,36 @@ double as_bspline_value_grad_hess_voxel(const as_bspline *bs, const double v[3],
  * as_grid_world_box, as_grid_bounding_sphere in io/image_io.h); f differs from b up to
  * as_bspline_margin voxels beyond it. */
 const as_grid *as_bspline_grid(const as_bspline *bs);
+/* The padded grid: the image's with AS_BSPLINE_PAD voxels more on every side (its voxel
+ * (i, j, k) is the image's (i, j, k) - PAD), where the coefficients are stored. */
+const as_grid *as_bspline_padded_grid(const as_bspline *bs);
 double as_bspline_background(const as_bspline *bs);
 /* max |c| over the stored coefficients (the padded grid's). */
 double as_bspline_coef_max(const as_bspline *bs);
+
+/*
+ * The values on the lattice of the padded grid's voxel centers (as_bspline_padded_grid,
+ * nx ny nz its dimensions below) grown by one node per side: node (i, j, k), 0 <= i <
+ * nx + 2 (and so on), is padded voxel coordinate (i - 1, j - 1, k - 1), and its value is
+ * as_bspline_value at that node's world point (as_grid_voxel_to_world on the padded
+ * grid), to the bit.
+ * as_bspline_layers_new sets *out to NULL (and returns OK) when the grid's direction
+ * matrix is not diagonal: then the caller evaluates node by node. Returns ENOMEM.
+ * as_bspline_layers_get fills layer k's (nx + 2)(ny + 2) values, x fastest; layers are
+ * meant to be taken in increasing k (each plane of coefficients is summed once for the
+ * four consecutive layers that read it). The object keeps bs (which must outlive it) and
+ * is not to be shared between threads.
+ * design: separable sums. Per plane of coefficients, the x sums of its rows at every x
+ *   node, then the y sums at every (x, y) node; per layer the z sums of its four planes:
+ *   the same products and additions in the same order as a single value's evaluation,
+ *   about 25 operations per node instead of 150 (the lattice of a 256^3 image is 17
+ *   million values).
+ */
+typedef struct as_bspline_layers as_bspline_layers;
+anistar_status as_bspline_layers_new(anistar_context *ctx, const as_bspline *bs,
+                                     as_bspline_layers **out);
+void as_bspline_layers_get(as_bspline_layers *L, size_t k, double *out);
+void as_bspline_layers_free(anistar_context *ctx, as_bspline_layers *L);
 
 /*
  * A margin m in voxels (an integer, 0 when f is b everywhere, else 1 <= m <= AS_BSPLINE_PAD

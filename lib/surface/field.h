@@ -187,6 +187,10 @@ struct anistar_metric {
     double *bxyz;            /* images: the points the blend is over (owned, 3 * bn) */
     size_t bn;
     as_kdtree *bkd;          /* images: their kd-tree (owned) */
+    int32_t *bnb;            /* images: each point's AS_FIELD_GRAD_K + 1 nearest (itself
+                                included; bn of them, owned), as the default radius found
+                                them, until the gradation's edges use them (NULL: none) */
+    uint8_t *bnbn;           /* how many of each are set (owned, bn) */
     double *braw;            /* once graded: the blend's tensors as fitted (owned, 6 *
                                 nraw); as_field_set_gradation grades a copy of them */
     size_t nraw;

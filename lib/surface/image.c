@@ -216,35 +216,47 @@ anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *
         vmin = fmin(vmin, l);
     }
     *voxel = vmin;
-    /* the nodes reach a voxel past the fade (bspline.h): where an object touches the
-     * image's border, its surface closes there */
-    const long o = AS_BSPLINE_PAD + 1;
-    const long lx = (long)g->n[0] + 2 * o, ly = (long)g->n[1] + 2 * o, lz = (long)g->n[2] + 2 * o;
+    /* the nodes: the padded grid's voxel centers and one node more on every side, a voxel
+     * past the fade (bspline.h: where an object touches the image's border, its surface
+     * closes there); as_bspline_layers' nodes, placed by the padded grid */
+    const as_grid *pg = as_bspline_padded_grid(is->bs);
+    const long lx = (long)pg->n[0] + 2, ly = (long)pg->n[1] + 2, lz = (long)pg->n[2] + 2;
     const size_t layer = (size_t)lx * (size_t)ly;
     double *val = as_alloc_array(ctx, 2 * layer, sizeof(double));
     if (!val) return as_fail(ctx, ANISTAR_ENOMEM, "image lattice: out of memory");
+    as_bspline_layers *lay = NULL; /* NULL: a rotated grid, node by node */
+    if (as_bspline_layers_new(ctx, is->bs, &lay)) {
+        as_free(ctx, val, 2 * layer * sizeof(double));
+        return ANISTAR_ENOMEM;
+    }
     size_t cap = 0, cnt = 0;
     double *pts = NULL;
     anistar_status st = ANISTAR_OK;
 #define LAT_NODE(i, j, k, out)                                                                 \
     do {                                                                                       \
-        double v_[3] = {(double)((i) - o), (double)((j) - o), (double)((k) - o)};              \
-        as_grid_voxel_to_world(g, v_, out);                                                    \
+        double v_[3] = {(double)(i) - 1, (double)(j) - 1, (double)(k) - 1};                    \
+        as_grid_voxel_to_world(pg, v_, out);                                                   \
     } while (0)
     for (long k = 0; k < lz && !st; k++) {
         double *cur = val + (size_t)(k & 1) * layer, *prev = val + (size_t)((k + 1) & 1) * layer;
+        if (lay) as_bspline_layers_get(lay, (size_t)k, cur); /* the spline's values */
         for (long j = 0; j < ly; j++)
             for (long i = 0; i < lx; i++) {
-                double p[3];
-                LAT_NODE(i, j, k, p);
-                double f = im_eval(s, p, 0, NULL, NULL);
+                double p[3], *q = &cur[(size_t)j * (size_t)lx + (size_t)i], f;
+                if (lay) {
+                    f = is->sign * (is->iso - *q); /* as im_eval (order 0) from the value */
+                } else {
+                    LAT_NODE(i, j, k, p);
+                    f = im_eval(s, p, 0, NULL, NULL);
+                }
                 if (!isfinite(f)) {
+                    LAT_NODE(i, j, k, p);
                     st = as_fail(ctx, ANISTAR_EINVAL,
                                  "image lattice: f is not finite at (%.17g, %.17g, %.17g)", p[0],
                                  p[1], p[2]);
                     break;
                 }
-                cur[(size_t)j * (size_t)lx + (size_t)i] = f;
+                *q = f;
             }
         for (long j = 0; j < ly && !st; j++)
             for (long i = 0; i < lx && !st; i++) {
@@ -287,6 +299,7 @@ anistar_status as_image_surface_lattice(anistar_context *ctx, const as_surface *
             }
     }
 #undef LAT_NODE
+    as_bspline_layers_free(ctx, lay);
     as_free(ctx, val, 2 * layer * sizeof(double));
     if (!st && cnt < cap) { /* the caller frees exactly 3 * cnt doubles */
         double *q = as_realloc(ctx, pts, cap * 3 * sizeof(double), cnt * 3 * sizeof(double));

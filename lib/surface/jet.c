@@ -444,15 +444,29 @@ anistar_status as_blend_eval(anistar_context *ctx, const as_blend *b, const doub
 
 anistar_status as_blend_default_radius(anistar_context *ctx, const as_kdtree *kd,
                                        const double *xyz, size_t n, size_t k, double *rb) {
+    return as_blend_default_radius_keep(ctx, kd, xyz, n, k, rb, NULL, 0, NULL);
+}
+
+anistar_status as_blend_default_radius_keep(anistar_context *ctx, const as_kdtree *kd,
+                                            const double *xyz, size_t n, size_t k, double *rb,
+                                            int32_t *keep, size_t keep_k, uint8_t *kept) {
     *rb = 0;
     if (n < 2 || k == 0)
         return as_fail(ctx, ANISTAR_EINVAL, "blending: the default radius needs two vertices");
     if (k > AS_JET_MAX_POINTS) k = AS_JET_MAX_POINTS;
+    if (keep && (keep_k > k + 1 || keep_k > UINT8_MAX))
+        return as_fail(ctx, ANISTAR_EINVAL,
+                       "blending: cannot keep %zu neighbours of a %zu-neighbour query", keep_k,
+                       k + 1);
     int32_t ids[AS_JET_MAX_POINTS + 1];
     double d2[AS_JET_MAX_POINTS + 1];
     double total = 0;
     for (size_t v = 0; v < n; v++) {
         size_t got = as_kdtree_knn(kd, xyz + 3 * v, k + 1, ids, d2);
+        if (keep) {
+            for (size_t i = 0; i < keep_k; i++) keep[keep_k * v + i] = i < got ? ids[i] : -1;
+            kept[v] = (uint8_t)(got < keep_k ? got : keep_k);
+        }
         double s = 0;
         size_t cnt = 0;
         for (size_t i = 0; i < got; i++) {

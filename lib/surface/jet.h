@@ -159,5 +159,13 @@ anistar_status as_blend_eval(anistar_context *ctx, const as_blend *b, const doub
  */
 anistar_status as_blend_default_radius(anistar_context *ctx, const as_kdtree *kd,
                                        const double *xyz, size_t n, size_t k, double *rb);
+/* The same, keeping for each vertex v the first keep_k (<= k + 1, k clamped as above) ids
+ * of its nearest-neighbour query, itself included (as_kdtree_knn's order: by squared
+ * distance, then id), in keep[keep_k * v ..] (unused slots -1) and their number in
+ * kept[v]: what as_kdtree_knn(kd, xyz + 3v, keep_k, ...) returns, since the keep_k
+ * nearest by (distance, id) are the first of the k + 1 nearest. EINVAL if keep_k > k + 1. */
+anistar_status as_blend_default_radius_keep(anistar_context *ctx, const as_kdtree *kd,
+                                            const double *xyz, size_t n, size_t k, double *rb,
+                                            int32_t *keep, size_t keep_k, uint8_t *kept);
 
 #endif /* ANISTAR_JET_H */

@@ -239,9 +239,9 @@ static inline void cr_point(const cr_chord *c, double u, double p[3]) {
 
 /* One sample: f at p(u) and its derivative along the chord (per unit u). *dok = 0 when
  * the derivative is not finite (then only the value is used). */
-static anistar_status cr_eval(cr_chord *c, double u, double *f, double *d, int *dok) {
-    double p[3], g[3] = {0, 0, 0};
-    cr_point(c, u, p);
+static anistar_status cr_eval_at(cr_chord *c, const double p[3], double *f, double *d,
+                                 int *dok) {
+    double g[3] = {0, 0, 0};
     c->evals++;
     double v = c->s->ops->eval(c->s, p, 1, g, NULL);
     if (!isfinite(v)) return fail_nonfinite(c->ctx, "f", p);
@@ -249,6 +249,13 @@ static anistar_status cr_eval(cr_chord *c, double u, double *f, double *d, int *
     *d = v3_dot(g, c->D);
     *dok = isfinite(*d);
     return ANISTAR_OK;
+}
+
+/* The same at p(u). */
+static anistar_status cr_eval(cr_chord *c, double u, double *f, double *d, int *dok) {
+    double p[3];
+    cr_point(c, u, p);
+    return cr_eval_at(c, p, f, d, dok);
 }
 
 static anistar_status cr_value(cr_chord *c, double u, double *f) {
@@ -284,8 +291,8 @@ static inline int cr_cand_before(const cr_cand *a, const cr_cand *b) {
     return a->seq < b->seq;
 }
 
-/* The distance from ref to the segment [pa, pb] (cr_piece_dist on the two points). */
-static double cr_seg_dist(const double pa[3], const double pb[3], const double ref[3]) {
+/* The distance from ref to the segment [pa, pb]. */
+static inline double cr_seg_dist(const double pa[3], const double pb[3], const double ref[3]) {
     double d[3], w[3];
     for (int i = 0; i < 3; i++) {
         d[i] = pb[i] - pa[i];
@@ -298,6 +305,7 @@ static double cr_seg_dist(const double pa[3], const double pb[3], const double r
     return sqrt(v3_dist2(q, ref));
 }
 
+/* The distance from ref to the piece [p(ua), p(ub)]. */
 static double cr_piece_dist(const cr_chord *c, const double ref[3], double ua, double ub) {
     double pa[3], pb[3];
     cr_point(c, ua, pa);
@@ -528,6 +536,43 @@ static anistar_status cr_piece_scan(cr_chord *c, cr_cands *cs, cr_piece base) {
     return ANISTAR_OK;
 }
 
+/*
+ * The base pieces 1..n (piece i between the base points bp + 3(i-1) and bp + 3i) by their
+ * distance to ref, ties by index: pd[i] and order[0..n-1] (full = 1: by index only).
+ * design: the pieces lie on a line, so their distances usually fall strictly to the
+ *   first minimum m and then rise (ties allowed): the two runs are merged from m
+ *   outwards, a tie going to the left piece (the lower index), which is the sort by
+ *   (distance, index). Any other sequence is sorted by insertion, as before: both give
+ *   the one order of the distinct keys (distance, index), and the distances are the same
+ *   numbers (cr_seg_dist on the same points as cr_piece_dist).
+ */
+static void cr_order_pieces(const double *bp, int n, const double ref[3], int full, double *pd,
+                            int *order) {
+    int m = 1;
+    for (int i = 1; i <= n; i++) {
+        pd[i] = cr_seg_dist(bp + 3 * (i - 1), bp + 3 * i, ref);
+        if (pd[i] < pd[m]) m = i;
+    }
+    int runs = !full;
+    for (int i = 2; i <= m && runs; i++) runs = pd[i - 1] > pd[i];
+    for (int i = m + 1; i <= n && runs; i++) runs = pd[i] >= pd[i - 1];
+    if (runs) {
+        int l = m - 1, r = m + 1, k = 0;
+        order[k++] = m;
+        while (l >= 1 || r <= n)
+            order[k++] = r > n || (l >= 1 && pd[l] <= pd[r]) ? l-- : r++;
+        return;
+    }
+    for (int i = 1; i <= n; i++) { /* insertion sort */
+        int j = i - 1;
+        while (j > 0 && !full && pd[order[j - 1]] > pd[i]) {
+            order[j] = order[j - 1];
+            j--;
+        }
+        order[j] = i;
+    }
+}
+
 /* The crossing; full = 1 scans every piece from A to B before refining (the order of the
  * original implementation, kept to test that the nearest-first order gives the same
  * answers), full = 0 scans the pieces nearest ref first (step 2-3 below). */
@@ -649,26 +694,14 @@ static anistar_status fs_crossing(anistar_context *ctx, const as_surface *s, con
      * the search never looks is no longer reported.
      */
     double bf[CR_MAX_PIECES + 1], bd[CR_MAX_PIECES + 1], pd[CR_MAX_PIECES + 1];
+    double bp[CR_MAX_PIECES + 1][3]; /* the base points p(ub[k]) */
     int bok[CR_MAX_PIECES + 1], order[CR_MAX_PIECES];
     unsigned char have[CR_MAX_PIECES + 1], done[CR_MAX_CAND];
     memset(have, 0, sizeof have);
     memset(done, 0, sizeof done);
 #define CR_BASE_U(k) (ub[k])
-    /* design: a piece's start is the previous piece's end: each lattice point is mapped
-     * once (cr_point: the same numbers cr_piece_dist maps) */
-    double pprev[3], pnext[3];
-    cr_point(&c, CR_BASE_U(0), pprev);
-    for (int i = 1; i <= npieces; i++) { /* pieces by (distance, index): insertion sort */
-        cr_point(&c, CR_BASE_U(i), pnext);
-        pd[i] = cr_seg_dist(pprev, pnext, ref);
-        memcpy(pprev, pnext, sizeof pprev);
-        int j = i - 1;
-        while (j > 0 && !full && pd[order[j - 1]] > pd[i]) {
-            order[j] = order[j - 1];
-            j--;
-        }
-        order[j] = i;
-    }
+    for (int k = 0; k <= npieces; k++) cr_point(&c, CR_BASE_U(k), bp[k]);
+    cr_order_pieces(&bp[0][0], npieces, ref, full, pd, order);
     double tol_u = s->tol / c.len;
     double best = INFINITY, bx[3] = {0, 0, 0};
     int next = 0; /* order[next] is the nearest piece not scanned */
@@ -682,7 +715,7 @@ static anistar_status fs_crossing(anistar_context *ctx, const as_surface *s, con
                 for (int k = i - 1; k <= i; k++) { /* the piece's end samples */
                     if (have[k]) continue;
                     double u = CR_BASE_U(k);
-                    if ((st = cr_eval(&c, u, &bf[k], &bd[k], &bok[k]))) return st;
+                    if ((st = cr_eval_at(&c, bp[k], &bf[k], &bd[k], &bok[k]))) return st;
                     have[k] = 1;
                     /* the full scan recorded an end zero (or an inside end on the
                      * sphere) at its step k, before piece k's candidates */

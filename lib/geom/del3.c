@@ -1543,33 +1543,48 @@ int as_del3_in_sphere_points(const double *const q[4], const int64_t g[4], const
     return s > 0;
 }
 
-anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out) {
-    out->n = 0;
+/* The walk of as_del3_vertex_tets (tets, in its order) and, when facets is not NULL,
+ * each popped tet's facets incident to v taken as it is popped (as_del3_vertex_tets_facets:
+ * collect_facets' list and order in the same pass). */
+static inline anistar_status vertex_walk(as_del3 *d, int32_t v, as_del3_buf *tets,
+                                         as_del3_buf *facets) {
+    tets->n = 0;
+    if (facets) facets->n = 0;
     if (!d->dim3 || v < 0 || v >= d->nv)
         return as_fail(d->ctx, ANISTAR_EINVAL, "del3: no vertex %d in a 3D triangulation",
                        (int)v);
     int32_t t0 = d->vert[v].tet;
-    if (buf_reserve(d->ctx, out, 32)) goto nomem;
-    out->a[out->n++] = t0;
+    if (buf_reserve(d->ctx, tets, 32)) goto nomem;
+    tets->a[tets->n++] = t0;
     d->mark[t0] = MARK_OUT;
-    for (size_t k = 0; k < out->n; k++) {
-        int32_t t = out->a[k];
-        if (out->n + 4 > out->cap && buf_reserve(d->ctx, out, out->n + 4)) goto nomem;
+    for (size_t k = 0; k < tets->n; k++) {
+        int32_t t = tets->a[k];
+        if ((tets->n + 4 > tets->cap && buf_reserve(d->ctx, tets, tets->n + 4)) ||
+            (facets && facets->n + 4 > facets->cap &&
+             buf_reserve(d->ctx, facets, facets->n + 4)))
+            goto nomem;
         const int32_t *tv = rec(d, t);
+        int inf = facets && is_inf(tv) ? inf_slot(tv) : -1;
         for (int j = 0; j < 4; j++) {
             if (tv[j] == v) continue; /* the only face without v */
             int32_t n = tv[4 + j] >> 3;
+            if (facets && (inf < 0 || inf == j) && t < n) facets->a[facets->n++] = 4 * t + j;
             if (d->mark[n] != MARK_NONE) continue;
             d->mark[n] = MARK_OUT;
-            out->a[out->n++] = n;
+            tets->a[tets->n++] = n;
         }
     }
-    for (size_t k = 0; k < out->n; k++) d->mark[out->a[k]] = MARK_NONE;
+    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
     return ANISTAR_OK;
 nomem:
-    for (size_t k = 0; k < out->n; k++) d->mark[out->a[k]] = MARK_NONE;
-    out->n = 0;
+    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
+    tets->n = 0;
+    if (facets) facets->n = 0;
     return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
+}
+
+anistar_status as_del3_vertex_tets(as_del3 *d, int32_t v, as_del3_buf *out) {
+    return vertex_walk(d, v, out, NULL);
 }
 
 /* The facets of the tets tets[0..nt) incident to v (see as_del3_vertex_facets) into
@@ -1610,40 +1625,9 @@ anistar_status as_del3_vertex_facets(as_del3 *d, int32_t v, as_del3_buf *out) {
 
 anistar_status as_del3_vertex_tets_facets(as_del3 *d, int32_t v, as_del3_buf *tets,
                                           as_del3_buf *facets) {
-    tets->n = 0;
-    facets->n = 0;
-    if (!d->dim3 || v < 0 || v >= d->nv)
-        return as_fail(d->ctx, ANISTAR_EINVAL, "del3: no vertex %d in a 3D triangulation",
-                       (int)v);
     /* design: as_del3_vertex_tets, each tet's facets (collect_facets) taken as it is
      * popped: the lists and their orders of the two calls, one pass */
-    int32_t t0 = d->vert[v].tet;
-    if (buf_reserve(d->ctx, tets, 32)) goto nomem;
-    tets->a[tets->n++] = t0;
-    d->mark[t0] = MARK_OUT;
-    for (size_t k = 0; k < tets->n; k++) {
-        int32_t t = tets->a[k];
-        if ((tets->n + 4 > tets->cap && buf_reserve(d->ctx, tets, tets->n + 4)) ||
-            (facets->n + 4 > facets->cap && buf_reserve(d->ctx, facets, facets->n + 4)))
-            goto nomem;
-        const int32_t *tv = rec(d, t);
-        int inf = is_inf(tv) ? inf_slot(tv) : -1;
-        for (int j = 0; j < 4; j++) {
-            if (tv[j] == v) continue; /* the only face without v */
-            int32_t n = tv[4 + j] >> 3;
-            if ((inf < 0 || inf == j) && t < n) facets->a[facets->n++] = 4 * t + j;
-            if (d->mark[n] != MARK_NONE) continue;
-            d->mark[n] = MARK_OUT;
-            tets->a[tets->n++] = n;
-        }
-    }
-    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
-    return ANISTAR_OK;
-nomem:
-    for (size_t k = 0; k < tets->n; k++) d->mark[tets->a[k]] = MARK_NONE;
-    tets->n = 0;
-    facets->n = 0;
-    return as_fail(d->ctx, ANISTAR_ENOMEM, "del3: out of memory (tets of vertex %d)", (int)v);
+    return vertex_walk(d, v, tets, facets);
 }
 
 /* ---- circumcenter ------------------------------------------------------------------------ */

@@ -746,7 +746,7 @@ ANISTAR_API anistar_status anistar_surface_from_image_file_fit(anistar_context *
 }
 
 ANISTAR_API int anistar_surface_image_fit(const anistar_surface *s) {
-    return as_image_surface_fit(s, NULL);
+    return as_image_surface_fit(s);
 }
 
 ANISTAR_API anistar_status anistar_surface_from_image(anistar_context *ctx,

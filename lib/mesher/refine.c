@@ -328,6 +328,7 @@ typedef struct refiner {
     int64_t low_vertices;
     int hard_limit; /* the vertex limit in force is the star set's hard limit */
     int in_final;   /* the limit or stop request came during the final checks */
+    as_halt halt;   /* max_seconds and the stop flag, for the steps and the final checks */
     as_gcache gc;           /* rule 1's pair distortions (as_gcache) */
     struct as_evpre *evpre; /* drain's parallel part, per event */
     size_t cap_evpre;
@@ -1654,20 +1655,27 @@ static void stop_message(refiner *R) {
     }
 }
 
+/* 1 when R->halt is due (max_seconds past or the stop flag set): the reason into R->cnt,
+ * in_final: whether the final checks were running. */
+static int halted(refiner *R, int in_final) {
+    if (!as_halt_due(&R->halt)) return 0;
+    R->cnt.stop_reason = atomic_load(&R->halt.halted) == AS_HALT_TIME ? ANISTAR_STOP_MAX_SECONDS
+                                                                      : ANISTAR_STOP_REQUESTED;
+    R->in_final = in_final;
+    return 1;
+}
+
 /* The limits checked before each job (or batch): 1 when the run stops (the reason in
  * R->cnt, *s set on cancellation). */
-static int run_limits(refiner *R, int64_t maxv, double t1, uint64_t *steps, double *last_report,
+static int run_limits(refiner *R, int64_t maxv, uint64_t *steps, double *last_report,
                       anistar_status *s) {
     const as_starset *ss = R->ss;
     if ((int64_t)(ss->n - ss->first_site) >= maxv) {
         R->cnt.stop_reason = ANISTAR_STOP_MAX_VERTICES;
         return 1;
     }
+    if (halted(R, 0)) return 1;
     double now = as_now_seconds();
-    if (R->prm->max_seconds > 0 && now - t1 > R->prm->max_seconds) {
-        R->cnt.stop_reason = ANISTAR_STOP_MAX_SECONDS;
-        return 1;
-    }
     if (R->n3 - R->low_at >= stall_budget(R)) {
         R->cnt.stop_reason = ANISTAR_STOP_STALL;
         return 1;
@@ -1812,8 +1820,9 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
     /* design: the final checks test the run's limits between stars too (the zone check of
      * a 100,000-vertex run takes tens of seconds): max_seconds and stop requests hold to
      * the end, not only between refinement steps */
-    as_halt halt = {prm->max_seconds > 0 ? t1 + prm->max_seconds : 0, ctl ? &ctl->stop : NULL,
-                    AS_HALT_NONE};
+    R.halt.deadline = prm->max_seconds > 0 ? t1 + prm->max_seconds : 0;
+    R.halt.stop = ctl ? &ctl->stop : NULL;
+    atomic_init(&R.halt.halted, AS_HALT_NONE);
     double last_report = t1;
     uint64_t steps = 0;
     int requeues = 0;
@@ -1832,7 +1841,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             for (int k = 0; k < 3 && !ran && !stop && s == ANISTAR_OK; k++) {
                 if (R.q[k].n == 0 || (s = batch_take(&R, k)) != ANISTAR_OK || R.njobs == 0)
                     continue; /* only stale entries: the next queue */
-                if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) stop = 1;
+                if (run_limits(&R, maxv, &steps, &last_report, &s)) stop = 1;
                 else if ((s = batch_run(&R, k, maxv)) == ANISTAR_OK) ran = 1;
             }
             if (s != ANISTAR_OK || stop) break;
@@ -1868,16 +1877,16 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
                  * (as_starset_verify_zones, on_held_piece); a star found wrong takes its
                  * whole Delaunay region as its zone and the refinement goes on. */
                 size_t opened = 0, swept = 0;
-                if (as_halt_due(&halt)) break;
+                if (halted(&R, 1)) break;
                 if ((s = sweep_rules(&R, &swept)) != ANISTAR_OK) break;
                 if (swept) {
                     R.cnt.swept += swept;
                     continue;
                 }
                 if ((s = pieces_update(&R)) != ANISTAR_OK ||
-                    (s = as_starset_verify_zones(ss, on_held_piece, &R, &halt, &opened)) !=
+                    (s = as_starset_verify_zones(ss, on_held_piece, &R, &R.halt, &opened)) !=
                         ANISTAR_OK ||
-                    as_halt_due(&halt))
+                    halted(&R, 1))
                     break;
                 if (opened) {
                     R.cnt.zones_opened += opened;
@@ -1947,7 +1956,7 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
             }
             continue;
         }
-        if (run_limits(&R, maxv, t1, &steps, &last_report, &s)) break;
+        if (run_limits(&R, maxv, &steps, &last_report, &s)) break;
         double p[3];
         if (rule == JOB_TOPOLOGY) {
             double d;
@@ -2000,13 +2009,6 @@ anistar_status as_mesher_run_keep(anistar_context *ctx, const as_surface *surf,
         if ((s = insert_point(&R, p)) != ANISTAR_OK) break;
         R.cnt.rule[rule]++;
         if (rule == JOB_RULE1) R.cnt.cause[cause]++;
-    }
-    if (s == ANISTAR_OK && !complete && !done && R.cnt.stop_reason == ANISTAR_STOP_DONE &&
-        atomic_load(&halt.halted) != AS_HALT_NONE) {
-        /* the final checks were halted (above): a limit, as between steps */
-        R.cnt.stop_reason = atomic_load(&halt.halted) == AS_HALT_TIME ? ANISTAR_STOP_MAX_SECONDS
-                                                                      : ANISTAR_STOP_REQUESTED;
-        R.in_final = 1;
     }
     double t2 = as_now_seconds();
     R.cnt.t_refine = t2 - t1;

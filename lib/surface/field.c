@@ -903,32 +903,36 @@ done:
 /* The edges from each of the n points of kd (ids 0..n-1, coordinates xyz) to its
  * AS_FIELD_GRAD_K nearest others, each pair once (kept at its smaller end when both ends
  * list the other), in the order of i then of distance: *edges (2 ints each, room for
- * *cap pairs, allocated here: free 2 * *cap ints), *ne of them. */
+ * *cap pairs, allocated here: free 2 * *cap ints), *ne of them. The neighbour lists come
+ * from nb_known and got_known when given (borrowed: as_kdtree_knn's answers, kept by
+ * fl_image_blend), else from the tree. */
 static anistar_status knn_edges(anistar_context *ctx, const as_kdtree *kd, const double *xyz,
-                                size_t n, int32_t *nb_known, uint8_t *got_known,
+                                size_t n, const int32_t *nb_known, const uint8_t *got_known,
                                 int32_t **edges, size_t *ne, size_t *cap) {
     enum { K = AS_FIELD_GRAD_K + 1 }; /* a point's list holds itself */
-    double d2[K];
     *edges = NULL;
     *ne = *cap = 0;
-    int32_t *nb = nb_known;
-    uint8_t *got = got_known;
-    if (!nb_known || !got_known) {
-        as_free(ctx, nb_known, n * K * sizeof *nb_known);
-        as_free(ctx, got_known, n * sizeof *got_known);
-        nb = as_alloc_array(ctx, n, K * sizeof *nb);
-        got = as_alloc_array(ctx, n, sizeof *got);
+    const int known = nb_known && got_known;
+    int32_t *own_nb = NULL;
+    uint8_t *own_got = NULL;
+    if (!known) {
+        own_nb = as_alloc_array(ctx, n, K * sizeof *own_nb);
+        own_got = as_alloc_array(ctx, n, sizeof *own_got);
     }
     int32_t *e = as_alloc_array(ctx, n, K * 2 * sizeof *e);
-    if (!nb || !got || !e) {
-        as_free(ctx, nb, n * K * sizeof *nb);
-        as_free(ctx, got, n * sizeof *got);
+    if (!e || (!known && (!own_nb || !own_got))) {
+        as_free(ctx, own_nb, n * K * sizeof *own_nb);
+        as_free(ctx, own_got, n * sizeof *own_got);
         as_free(ctx, e, n * K * 2 * sizeof *e);
         return as_fail(ctx, ANISTAR_ENOMEM, "metric: out of memory (gradation)");
     }
-    if (nb != nb_known)
+    if (!known) {
+        double d2[K];
         for (size_t i = 0; i < n; i++)
-            got[i] = (uint8_t)as_kdtree_knn(kd, xyz + 3 * i, K, nb + K * i, d2);
+            own_got[i] = (uint8_t)as_kdtree_knn(kd, xyz + 3 * i, K, own_nb + K * i, d2);
+    }
+    const int32_t *nb = known ? nb_known : own_nb;
+    const uint8_t *got = known ? got_known : own_got;
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         for (size_t q = 0; q < got[i]; q++) {
@@ -943,8 +947,8 @@ static anistar_status knn_edges(anistar_context *ctx, const as_kdtree *kd, const
             e[2 * m + 1] = j;
             m++;
         }
-    as_free(ctx, nb, n * K * sizeof *nb);
-    as_free(ctx, got, n * sizeof *got);
+    as_free(ctx, own_nb, n * K * sizeof *own_nb);
+    as_free(ctx, own_got, n * sizeof *own_got);
     *edges = e;
     *ne = m;
     *cap = n * K;
@@ -1223,8 +1227,6 @@ static anistar_status fl_regrade_blend(anistar_context *ctx, as_field *fl, doubl
         int32_t *edges = NULL;
         size_t ne = 0, cap = 0;
         st = knn_edges(ctx, fl->bkd, fl->bxyz, fl->bn, fl->bnb, fl->bnbn, &edges, &ne, &cap);
-        fl->bnb = NULL; /* knn_edges took them */
-        fl->bnbn = NULL;
         if (!st) st = as_field_gradation_edges(ctx, t, fl->bxyz, ne, edges, grad, 1, NULL);
         as_free(ctx, edges, cap * 2 * sizeof *edges);
     }
@@ -1353,7 +1355,7 @@ anistar_status as_field_from_spec(anistar_context *ctx, const as_surface *s, con
     int kinked_curv = sp.kind == AS_FIELD_CURVATURE && as_surface_has_kinks(s);
     double g = sp.has_grad ? sp.grad : image_curv || kinked_curv ? AS_FIELD_DATA_GRAD : 0;
     if (!st && g > 0) st = as_field_set_gradation(ctx, fl, g);
-    fl_free_neighbours(fl); /* not graded here: a later gradation asks the tree */
+    fl_free_neighbours(fl); /* the gradation above used them; a later one asks the tree */
     as_field_spec_clear(ctx, &sp);
     if (st) {
         as_field_free(fl);

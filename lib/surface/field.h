@@ -189,7 +189,8 @@ struct anistar_metric {
     as_kdtree *bkd;          /* images: their kd-tree (owned) */
     int32_t *bnb;            /* images: each point's AS_FIELD_GRAD_K + 1 nearest (itself
                                 included; bn of them, owned), as the default radius found
-                                them, until the gradation's edges use them (NULL: none) */
+                                them, lent to the gradation's edges and freed when
+                                as_field_from_spec ends (NULL: none) */
     uint8_t *bnbn;           /* how many of each are set (owned, bn) */
     double *braw;            /* once graded: the blend's tensors as fitted (owned, 6 *
                                 nraw); as_field_set_gradation grades a copy of them */

@@ -27,8 +27,6 @@ typedef struct as_image_surface {
     as_bspline *bs;
     double iso;
     double sign; /* f = sign * (iso - value) */
-    int fit;     /* AS_IMAGE_FIT_INTERPOLATE or _SMOOTH: the one used */
-    int nvalues; /* distinct voxel values, counted up to AS_IMAGE_LABELS_MAX + 1 */
 } as_image_surface;
 
 static double im_eval(const as_surface *s, const double p[3], int order, double g[3],
@@ -60,11 +58,11 @@ static const as_surface_ops image_ops = {"image", im_eval, NULL, NULL, NULL, NUL
 
 int as_surface_is_image(const as_surface *s) { return s && s->ops == &image_ops; }
 
-int as_image_surface_fit(const as_surface *s, int *nvalues) {
+int as_image_surface_fit(const as_surface *s) {
     if (!as_surface_is_image(s)) return AS_IMAGE_FIT_AUTO;
     const as_image_surface *is = (const as_image_surface *)s;
-    if (nvalues) *nvalues = is->nvalues;
-    return is->fit;
+    return as_bspline_fit(is->bs) == AS_BSPLINE_SMOOTH ? AS_IMAGE_FIT_SMOOTH
+                                                       : AS_IMAGE_FIT_INTERPOLATE;
 }
 
 /* The distinct values of img's voxels, counted up to AS_IMAGE_LABELS_MAX + 1. */
@@ -123,10 +121,9 @@ anistar_status as_image_surface_create_fit(anistar_context *ctx, const char *nam
     is->sign = inside > 0 ? 1.0 : -1.0;
     /* design: a label image or mask (few distinct values: every step is a jump between
      * labels) gets the smoothing fit, any other the interpolating one (bspline.h) */
-    is->nvalues = count_values(img);
     if (fit == AS_IMAGE_FIT_AUTO)
-        fit = is->nvalues <= AS_IMAGE_LABELS_MAX ? AS_IMAGE_FIT_SMOOTH : AS_IMAGE_FIT_INTERPOLATE;
-    is->fit = fit;
+        fit = count_values(img) <= AS_IMAGE_LABELS_MAX ? AS_IMAGE_FIT_SMOOTH
+                                                       : AS_IMAGE_FIT_INTERPOLATE;
     anistar_status st =
         as_bspline_create_fit(ctx, img, inside > 0 ? lo : hi,
                               fit == AS_IMAGE_FIT_SMOOTH ? AS_BSPLINE_SMOOTH : AS_BSPLINE_INTERPOLATE,

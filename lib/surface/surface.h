@@ -457,10 +457,8 @@ anistar_status as_image_surface_from_array_fit(anistar_context *ctx, const doubl
                                                const size_t dims[3], const double spacing[3],
                                                const double origin[3], double iso, int inside,
                                                int fit, as_surface **out);
-/* The fit an image surface uses (INTERPOLATE or SMOOTH; AUTO when s is not an image) and,
- * when nvalues is not NULL, its distinct voxel values counted up to AS_IMAGE_LABELS_MAX
- * + 1. */
-int as_image_surface_fit(const as_surface *s, int *nvalues);
+/* The fit an image surface uses (INTERPOLATE or SMOOTH; AUTO when s is not an image). */
+int as_image_surface_fit(const as_surface *s);
 /* 1 iff s is an image surface. */
 int as_surface_is_image(const as_surface *s);
 /*
